@@ -1,0 +1,183 @@
+"""Grain-engine benchmark on the standard dense case (python -m engine.bench, or `plugsim bench`).
+
+The standard case: the default 7 mm x 0.525 m horizontal tube with a 6 cm plug that fills the
+cross-section and a settled bed in the rest of the tube, about 3200 grains, gas and feed off. It is
+the problem LAMMPS runs in benchmarks/lammps/ (same grains, same contact law, one core).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .case import Case
+from .feed import layer_template
+from .simulation import Simulation
+
+PLUG_LENGTH = 0.06  # m
+PLUG_START = 0.2    # m
+TARGET_GRAINS = 3200
+
+
+def standard_case(*overrides: str) -> Case:
+    """The benchmark case: defaults with gas and feed off."""
+    return Case().with_overrides(["gas.enabled=false", "feed.mass_flow_kg_h=0", *overrides])
+
+
+def standard_packing(case: Case) -> np.ndarray:
+    """Grain centres (n, 3) of a plug plus a bed, on stacked ring layers (before settling)."""
+    d, length = case["particles.diameter"], case["tube.length"]
+    template = layer_template(case["tube.diameter"] / 2, d)
+    spacing = 1.02 * d
+    xs = np.arange(d, length - d, spacing)
+    plug = (xs >= PLUG_START) & (xs < PLUG_START + PLUG_LENGTH)
+    n_plug = plug.sum() * len(template)
+    # bed: the lowest grains of each layer, as many as give about TARGET_GRAINS in all
+    per_layer = max(1, round((TARGET_GRAINS - n_plug) / (~plug).sum()))
+    rng = np.random.default_rng(0)
+    layers = []
+    for x, full in zip(xs, plug):
+        angle = rng.uniform(0, 2 * np.pi)  # random layer rotations break the lattice symmetry
+        c, s = np.cos(angle), np.sin(angle)
+        yz = template @ np.array([[c, s], [-s, c]])
+        if not full:
+            yz = yz[np.argsort(yz[:, 1])[:per_layer]]
+        jitter = rng.uniform(-0.004, 0.004, len(yz)) * d
+        layers.append(np.column_stack([x + jitter, yz]))
+    return np.vstack(layers)
+
+
+def settled_simulation(*overrides: str, settle_time: float = 0.05) -> Simulation:
+    """The standard case after letting the bed settle under gravity."""
+    sim = Simulation(standard_case(*overrides))
+    sim.add_particles(standard_packing(sim.case))
+    sim.advance(settle_time)
+    return sim
+
+
+def contacts_per_grain(sim: Simulation) -> float:
+    """Mean number of touching neighbours per grain, the cylinder and inlet walls included."""
+    pos, d = sim.positions, 2 * sim.model.radius
+    order = np.argsort(pos[:, 0])
+    pos = pos[order]
+    pairs = 0
+    for shift in range(1, 64):  # grains sorted by x: partners lie within a few dozen places
+        dist = np.linalg.norm(pos[shift:] - pos[:-shift], axis=1)
+        pairs += np.count_nonzero(dist < d)
+    wall = np.count_nonzero(np.hypot(pos[:, 1], pos[:, 2]) + d / 2 > sim.case["tube.diameter"] / 2)
+    wall += np.count_nonzero(pos[:, 0] < d / 2)
+    return (2 * pairs + wall) / len(pos)
+
+
+def measure_rate(sim: Simulation, steps: int, repeats: int) -> list[float]:
+    """Particle-steps per second of `repeats` runs of `steps` steps each."""
+    rates = []
+    for _ in range(repeats):
+        n = sim.n_particles
+        start = time.perf_counter()
+        sim.advance(steps * sim.dt)
+        rates.append(n * steps / (time.perf_counter() - start))
+    return rates
+
+
+def compile_time() -> dict:
+    """Seconds to import and run the first step in a fresh process: cold (empty cache) and warm."""
+    code = ("import time; t=time.perf_counter(); from engine.bench import standard_case;"
+            "from engine import Simulation; s=Simulation(standard_case());"
+            "s.add_particles([[0.1,0,0]]); s.advance(s.dt); print(time.perf_counter()-t)")
+    out = {}
+    with tempfile.TemporaryDirectory() as cache:
+        for label in ("cold", "warm"):
+            env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+            res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                 check=True)
+            out[label] = float(res.stdout.strip().splitlines()[-1])
+    return out
+
+
+def write_lammps_data(sim: Simulation, path: str | Path) -> None:
+    """Write the grains as a LAMMPS atom_style sphere data file (SI units).
+
+    LAMMPS's granular cylinder wall is along z, so the tube axis x maps to LAMMPS z:
+    (x, y, z) -> (y, z, x); gravity along our -z is LAMMPS -y.
+    """
+    pos, vel = sim.positions, sim.velocities
+    R, L = sim.case["tube.diameter"] / 2, sim.case["tube.length"]
+    d, rho = sim.case["particles.diameter"], sim.case["particles.density"]
+    lines = ["plugsim standard dense case (tube axis along z)", "", f"{len(pos)} atoms", "1 atom types",
+             "", f"{-R:.6g} {R:.6g} xlo xhi", f"{-R:.6g} {R:.6g} ylo yhi", f"{-0.01:.6g} {L + 0.01:.6g} zlo zhi",
+             "", "Atoms # sphere", ""]
+    for i, (x, y, z) in enumerate(pos, start=1):
+        lines.append(f"{i} 1 {d:.10g} {rho:.10g} {y:.10g} {z:.10g} {x:.10g}")
+    lines += ["", "Velocities", ""]
+    for i, (vx, vy, vz) in enumerate(vel, start=1):
+        lines.append(f"{i} {vy:.10g} {vz:.10g} {vx:.10g} 0 0 0")
+    Path(path).write_text("\n".join(lines) + "\n")
+
+
+def lammps_parameters(sim: Simulation) -> dict:
+    """The contact law in LAMMPS gran/hooke units (damping per unit reduced mass, 1/s)."""
+    m = sim.model
+    m_pair = m.mass / 2
+    return {"kn": m.stiffness, "gamma_n": m.damping_pair / m_pair, "gamma_t": m.tangential_damping / m_pair,
+            "xmu": m.friction_pair, "dt": sim.dt, "radius_tube": sim.case["tube.diameter"] / 2,
+            "gravity": sim.case["physics.gravity"], "n_grains": sim.n_particles}
+
+
+def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1) -> dict:
+    """Build, settle and time the standard case; returns the numbers it prints."""
+    import numba
+    numba.set_num_threads(threads)
+    sim = settled_simulation()
+    rates = measure_rate(sim, steps, repeats)
+    result = {"grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),
+              "time_step_s": sim.dt, "steps_per_repeat": steps, "repeats": repeats,
+              "particle_steps_per_s_median": statistics.median(rates),
+              "particle_steps_per_s_all": [round(r) for r in rates],
+              "wall_s_per_simulated_s": sim.n_particles / statistics.median(rates) / sim.dt}
+    if with_compile:
+        result["compile_s"] = compile_time()
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="plugsim bench", description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2000, help="steps per repeat (default 2000)")
+    parser.add_argument("--repeats", type=int, default=5, help="repeats; the median is reported")
+    parser.add_argument("--no-compile", action="store_true", help="skip the compile-time measurement")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--write-lammps", metavar="DIR",
+                        help="also write the settled packing (grains.data) and params.json for LAMMPS")
+    args = parser.parse_args(argv)
+    result = run(args.steps, args.repeats, not args.no_compile)
+    if args.write_lammps:
+        sim = settled_simulation()
+        out = Path(args.write_lammps)
+        out.mkdir(parents=True, exist_ok=True)
+        write_lammps_data(sim, out / "grains.data")
+        (out / "params.json").write_text(json.dumps(lammps_parameters(sim), indent=1))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"grains                 {result['grains']}")
+        print(f"contacts per grain     {result['contacts_per_grain']:.2f} (walls included)")
+        print(f"particle-steps per s   {result['particle_steps_per_s_median']:.3e} "
+              f"(median of {args.repeats} x {args.steps} steps, one thread)")
+        print(f"wall s per simulated s {result['wall_s_per_simulated_s']:.1f} (dt = {result['time_step_s']:.3g} s)")
+        if "compile_s" in result:
+            print(f"compile + first step   {result['compile_s']['cold']:.1f} s cold cache, "
+                  f"{result['compile_s']['warm']:.1f} s warm cache")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

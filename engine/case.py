@@ -1,0 +1,254 @@
+"""Case configuration: every key, its unit, default and allowed range; YAML loading and dotted overrides.
+
+A case is a flat mapping ``"section.key" -> value``. It is validated completely on construction, so
+bad input is refused before any work, with a message naming the key and the allowed range.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import yaml
+
+
+class CaseError(ValueError):
+    """A case configuration that cannot be run (unknown key, wrong type, value out of range)."""
+
+
+@dataclass(frozen=True)
+class Key:
+    """One configuration key: meaning, unit, default and allowed range (inclusive unless noted)."""
+
+    name: str
+    default: Any
+    unit: str
+    doc: str
+    kind: type = float
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False  # True: value must be > low (not >=)
+    choices: tuple = ()
+
+    def allowed(self) -> str:
+        """Human-readable allowed range."""
+        if self.kind is bool:
+            return "true or false"
+        if self.choices:
+            return "one of " + ", ".join(map(str, self.choices))
+        lo = "" if self.low is None else f"{self.low:g} {'<' if self.low_open else '<='} "
+        hi = "" if self.high is None else f" <= {self.high:g}"
+        return f"{lo}value{hi}"
+
+    def check(self, value: Any) -> Any:
+        """Return the value converted to the key's type, or raise CaseError naming the key."""
+        value = self._convert(value)
+        if self.choices and value not in self.choices:
+            raise CaseError(f"{self.name} = {value!r} is not allowed: {self.allowed()}")
+        if self.kind in (int, float):
+            if not math.isfinite(value):
+                raise CaseError(f"{self.name} = {value!r} is not finite: allowed {self.allowed()}")
+            too_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
+            too_high = self.high is not None and value > self.high
+            if too_low or too_high:
+                raise CaseError(
+                    f"{self.name} = {value!r} is out of range: allowed {self.allowed()}"
+                    f" ({self.doc.split('.')[0]}, {self.unit})")
+        return value
+
+    def _convert(self, value: Any) -> Any:
+        if self.kind is bool:
+            if isinstance(value, bool):
+                return value
+            raise CaseError(f"{self.name} = {value!r} must be true or false")
+        if self.kind is int:
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or int(value) != value:
+                raise CaseError(f"{self.name} = {value!r} must be an integer: allowed {self.allowed()}")
+            return int(value)
+        if self.kind is float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise CaseError(f"{self.name} = {value!r} must be a number ({self.unit}): "
+                                f"allowed {self.allowed()}")
+            return float(value)
+        if not isinstance(value, self.kind):
+            raise CaseError(f"{self.name} = {value!r} must be a {self.kind.__name__}: allowed {self.allowed()}")
+        return value
+
+
+# The papers' defaults (both papers, §3): L = 0.525 m, D = 7 mm, d = 1.4 mm, rho_s = 937 kg/m3,
+# mu = 0.5, e = 0.5, P0 = 1013.25 hPa, eta = 0.0673 cP, v_s = 1 m/s, feed 2.49 kg/h at 0.04 m/s.
+KEYS: dict[str, Key] = {k.name: k for k in [
+    Key("tube.length", 0.525, "m", "Tube length L; x runs from the inlet (0) to the outlet (L).",
+        low=0.0, low_open=True, high=100.0),
+    Key("tube.diameter", 0.007, "m", "Inner tube diameter D.", low=0.0, low_open=True, high=1.0),
+    Key("tube.inclination_deg", 0.0, "degree",
+        "Tube inclination from horizontal: 0 = horizontal (gravity along -z), 90 = vertical "
+        "(gravity along -x, flow upward).", low=0.0, high=90.0),
+    Key("physics.gravity", 9.81, "m s-2", "Gravitational acceleration g.", low=0.0, high=1000.0),
+    Key("particles.diameter", 0.0014, "m", "Grain diameter d (monodisperse spheres); must be < D/2.",
+        low=0.0, low_open=True, high=1.0),
+    Key("particles.density", 937.0, "kg m-3", "Grain material density rho_s.",
+        low=0.0, low_open=True, high=1e5),
+    Key("particles.friction", 0.5, "1", "Coulomb coefficient mu between grains.", low=0.0, high=10.0),
+    Key("particles.restitution", 0.5, "1",
+        "Normal restitution coefficient e of a head-on grain-grain collision (the normal damping "
+        "is calibrated so that the measured e equals this value; the non-attractive spring-dashpot "
+        "cannot go below 0.15).", low=0.15, high=1.0),
+    Key("particles.stiffness", 2000.0, "N m-1", "Normal spring constant k_n (grain-grain and grain-wall).",
+        low=0.0, low_open=True, high=1e9),
+    Key("particles.tangential_damping", 0.02, "N s m-1",
+        "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
+        "slowly slipping contacts creep.", low=0.0, high=1e3),
+    Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
+        low=0.0, high=10.0),
+    Key("wall.restitution", 0.5, "1", "Normal restitution coefficient of a head-on grain-wall impact.",
+        low=0.15, high=1.0),
+    Key("feed.mass_flow_kg_h", 2.49, "kg h-1",
+        "Grain mass flow m_dot enforced at the inlet (0 switches the feed off).", low=0.0, high=1e4),
+    Key("feed.entry_velocity", 0.04, "m s-1",
+        "Speed u_in of the feed piston that pushes grains into the tube; the feed is refused when "
+        "m_dot cannot be packed at this speed.", low=0.0, low_open=True, high=100.0),
+    Key("feed.max_overlap", 0.05, "1",
+        "Largest overlap (fraction of d) the feed piston may press into grains ahead before it "
+        "pauses; bounds the push when the tube is blocked.", low=0.0, low_open=True, high=0.5),
+    Key("gas.enabled", True, "", "Solve the gas pressure field and apply drag (false: pure grains).",
+        kind=bool),
+    Key("gas.superficial_velocity", 1.0, "m s-1", "Superficial gas velocity v_s = gas flow / A.",
+        low=0.0, high=100.0),
+    Key("gas.viscosity", 6.73e-5, "Pa s", "Effective dynamic gas viscosity eta (0.0673 cP).",
+        low=0.0, low_open=True, high=1.0),
+    Key("gas.pressure", 101325.0, "Pa", "Background (atmospheric) pressure P0.",
+        low=0.0, low_open=True, high=1e8),
+    Key("gas.nodes_x", 150, "1", "Gas grid nodes along the tube.", kind=int, low=3, high=100000),
+    Key("gas.nodes_y", 2, "1", "Gas grid nodes across the tube (y).", kind=int, low=1, high=64),
+    Key("gas.nodes_z", 2, "1", "Gas grid nodes across the tube (z).", kind=int, low=1, high=64),
+    Key("numerics.time_step_fraction", 0.05, "1",
+        "Time step as a fraction of the grain-grain contact time t_c; refused above the stable limit.",
+        low=0.0, low_open=True, high=10.0),
+    Key("numerics.neighbor_skin", 0.15, "1",
+        "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "
+        "moved half of it).", low=0.0, low_open=True, high=2.0),
+    Key("run.seed", 0, "1", "Seed of the random numbers (feed layer orientations).", kind=int,
+        low=0, high=2**31 - 1),
+]}
+
+
+def defaults() -> dict[str, Any]:
+    """All keys at their default values."""
+    return {name: key.default for name, key in KEYS.items()}
+
+
+def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested YAML mapping -> flat dotted keys (a section must be a mapping)."""
+    flat: dict[str, Any] = {}
+    for name, value in nested.items():
+        dotted = f"{prefix}{name}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, dotted + "."))
+        else:
+            flat[dotted] = value
+    return flat
+
+
+def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Flat dotted keys -> nested mapping (for writing YAML)."""
+    nested: dict[str, Any] = {}
+    for dotted, value in flat.items():
+        *sections, leaf = dotted.split(".")
+        node = nested
+        for section in sections:
+            node = node.setdefault(section, {})
+        node[leaf] = value
+    return nested
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """'particles.friction=0.1' -> ('particles.friction', 0.1); the value is read as YAML."""
+    if "=" not in text:
+        raise CaseError(f"override {text!r} must look like key.path=value")
+    name, raw = text.split("=", 1)
+    return name.strip(), yaml.safe_load(raw)
+
+
+def _unknown(name: str) -> CaseError:
+    close = difflib.get_close_matches(name, KEYS, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return CaseError(f"unknown key {name!r}{hint}; `plugsim keys` lists all keys")
+
+
+class Case:
+    """A validated case: read values with ``case["particles.friction"]``."""
+
+    def __init__(self, values: Mapping[str, Any] | None = None):
+        merged = defaults()
+        for name, value in flatten(values or {}).items():
+            if name not in KEYS:
+                raise _unknown(name)
+            merged[name] = value
+        self._values = {name: KEYS[name].check(value) for name, value in merged.items()}
+        self._check_consistency()
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, overrides: Iterable[str] = ()) -> "Case":
+        """Load a case YAML file, then apply 'key=value' overrides."""
+        path = Path(path)
+        if not path.is_file():
+            raise CaseError(f"case file {str(path)!r} does not exist")
+        nested = yaml.safe_load(path.read_text()) or {}
+        if not isinstance(nested, Mapping):
+            raise CaseError(f"case file {str(path)!r} must hold a mapping of sections")
+        return cls(nested).with_overrides(overrides)
+
+    def with_overrides(self, overrides: Iterable[str | tuple[str, Any]] = (), **kw: Any) -> "Case":
+        """A new case with dotted overrides ('key=value' strings, (key, value) pairs or key__sub=value)."""
+        values = dict(self._values)
+        pairs = [parse_override(o) if isinstance(o, str) else o for o in overrides]
+        pairs += [(k.replace("__", "."), v) for k, v in kw.items()]
+        for name, value in pairs:
+            if name not in KEYS:
+                raise _unknown(name)
+            values[name] = value
+        return Case(values)
+
+    def __getitem__(self, name: str) -> Any:
+        if name not in self._values:
+            raise _unknown(name)
+        return self._values[name]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested mapping of all values."""
+        return unflatten(self._values)
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def items(self):
+        return self._values.items()
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Case) and self._values == other._values
+
+    def __repr__(self) -> str:
+        changed = {k: v for k, v in self._values.items() if v != KEYS[k].default}
+        return f"Case({changed})"
+
+    def _check_consistency(self) -> None:
+        """Cross-key checks (each message names the keys involved)."""
+        d, D = self["particles.diameter"], self["tube.diameter"]
+        if d >= D / 2:
+            raise CaseError(f"particles.diameter = {d:g} m must be < tube.diameter / 2 = {D / 2:g} m")
+        if self["tube.length"] < 4 * d:
+            raise CaseError(f"tube.length = {self['tube.length']:g} m must be >= 4 particles.diameter")
+
+
+def keys_markdown() -> str:
+    """Reference table of every key (docs/case-keys.md is generated from this)."""
+    lines = ["# Case configuration keys", "",
+             "Generated by `plugsim keys --markdown`; the source of truth is `engine/case.py`.", "",
+             "| key | meaning | unit | default | allowed |", "|---|---|---|---|---|"]
+    for key in KEYS.values():
+        lines.append(f"| `{key.name}` | {key.doc} | {key.unit or '-'} | {key.default!r} | {key.allowed()} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,66 @@
+"""The `plugsim` command line: keys, check, bench (run arrives with the case-file issue)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .case import KEYS, Case, CaseError, keys_markdown
+
+
+def _keys(args: argparse.Namespace) -> int:
+    if args.markdown:
+        sys.stdout.write(keys_markdown())
+        return 0
+    for key in KEYS.values():
+        print(f"{key.name:32s} {key.default!r:>10}  [{key.unit or '-'}]  {key.allowed()}")
+        print(f"{'':32s} {key.doc}")
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    """Validate a case and print what it implies (time step, contact time, feed)."""
+    from .contact import ContactModel
+    from .feed import Feed
+
+    case = Case.from_yaml(args.case, args.set)
+    model = ContactModel.from_case(case)
+    feed = Feed(case, model.mass, case["run.seed"])
+    print(f"case {args.case}: valid")
+    print(f"  contact time        {model.contact_time:.4g} s")
+    print(f"  time step           {model.time_step:.4g} s (stable limit {model.stable_time_step:.4g} s)")
+    if feed.enabled:
+        print(f"  feed                {len(feed.template)} grains per layer, layers {feed.spacing * 1e3:.3f} mm "
+              f"apart, solid fraction {feed.solid_fraction:.3f}")
+    return 0
+
+
+def _bench(args: argparse.Namespace) -> int:
+    from . import bench
+    return bench.main(args.rest)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="plugsim", description="Dense-phase pneumatic conveying simulator")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("keys", help="list every case key with unit, default and allowed range")
+    p.add_argument("--markdown", action="store_true", help="print the docs/case-keys.md table")
+    p.set_defaults(func=_keys)
+    p = sub.add_parser("check", help="validate a case file (with overrides) and print derived numbers")
+    p.add_argument("case", help="case YAML, e.g. config/cases/horizontal.yaml")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
+    p.set_defaults(func=_check)
+    p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
+    p.add_argument("rest", nargs=argparse.REMAINDER)
+    p.set_defaults(func=_bench)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except CaseError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

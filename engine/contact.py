@@ -1,0 +1,90 @@
+"""Contact-law parameters derived from a case: damping from restitution, contact time, stable time step.
+
+Normal force: F_n = max(0, k_n delta + gamma_n v_n) (linear spring + dashpot, never attractive).
+Tangential force: F_t = -min(mu F_n, gamma_t |v_t|) t_hat (viscous-regularised Coulomb, no history).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from scipy.optimize import brentq
+
+from .case import Case, CaseError
+
+
+def clamped_restitution(zeta: float) -> float:
+    """Restitution of the non-attractive linear spring-dashpot at damping ratio zeta (0 < zeta < 1).
+
+    The contact ends when k delta + gamma v_n first reaches zero (before delta does), so the grains
+    separate faster than the textbook exp(-zeta pi / sqrt(1 - zeta^2)) predicts.
+    """
+    if zeta <= 0.0:
+        return 1.0
+    wd = math.sqrt(1.0 - zeta * zeta)
+    # In units of 1/omega_0: delta = e^{-zeta t} sin(wd t)/wd; the force vanishes at wd t = theta.
+    theta = math.atan2(2.0 * zeta, -(1.0 - 2.0 * zeta * zeta) / wd)
+    return math.exp(-zeta * theta / wd) * abs(math.cos(theta) - zeta / wd * math.sin(theta))
+
+
+def damping_ratio(restitution: float) -> float:
+    """Damping ratio zeta whose clamped collision gives this restitution (inverse of the above)."""
+    if restitution >= 1.0:
+        return 0.0
+    lowest = clamped_restitution(0.999)
+    if restitution <= lowest:
+        raise CaseError(f"restitution {restitution:g} is below {lowest:.3f}, the smallest the "
+                        "non-attractive spring-dashpot can produce")
+    return brentq(lambda z: clamped_restitution(z) - restitution, 0.0, 0.999, xtol=1e-14)
+
+
+@dataclass(frozen=True)
+class ContactModel:
+    """Derived grain and contact constants, SI units."""
+
+    radius: float
+    mass: float
+    inertia: float
+    stiffness: float
+    damping_pair: float        # gamma_n grain-grain, N s/m
+    damping_wall: float        # gamma_n grain-wall, N s/m
+    tangential_damping: float  # gamma_t, N s/m
+    friction_pair: float
+    friction_wall: float
+    contact_time: float        # duration of a head-on grain-grain contact, s
+    stable_time_step: float    # explicit stability limit, s
+    time_step: float           # the step used, s
+
+    @classmethod
+    def from_case(cls, case: Case) -> "ContactModel":
+        d, rho, k = case["particles.diameter"], case["particles.density"], case["particles.stiffness"]
+        radius = d / 2
+        mass = rho * math.pi * d**3 / 6
+        inertia = 0.4 * mass * radius**2
+        m_pair = mass / 2  # reduced mass of two equal grains; the wall has infinite mass
+        zeta_pair = damping_ratio(case["particles.restitution"])
+        zeta_wall = damping_ratio(case["wall.restitution"])
+        omega_pair = math.sqrt(k / m_pair)
+        contact_time = math.pi / (omega_pair * math.sqrt(1.0 - zeta_pair**2))
+        gamma_t = case["particles.tangential_damping"]
+        # Velocity Verlet on a damped oscillator is stable for omega dt < 2 (sqrt(1+zeta^2) - zeta);
+        # the tangential dashpot acts on the reduced mass m/7 of sliding + rolling spheres and is
+        # stable for gamma_t dt / (m/7) < 2.
+        stable_normal = 2.0 / omega_pair * (math.sqrt(1 + zeta_pair**2) - zeta_pair)
+        stable_tangential = 2.0 * (mass / 7.0) / gamma_t if gamma_t > 0 else math.inf
+        stable = min(stable_normal, stable_tangential)
+        dt = case["numerics.time_step_fraction"] * contact_time
+        if dt > stable:
+            raise CaseError(
+                f"numerics.time_step_fraction = {case['numerics.time_step_fraction']:g} gives a time step "
+                f"{dt:.3g} s above the stable limit {stable:.3g} s (= {stable / contact_time:.3f} of the "
+                f"contact time {contact_time:.3g} s); use numerics.time_step_fraction <= "
+                f"{stable / contact_time:.3f}")
+        return cls(
+            radius=radius, mass=mass, inertia=inertia, stiffness=k,
+            damping_pair=2 * zeta_pair * math.sqrt(m_pair * k),
+            damping_wall=2 * zeta_wall * math.sqrt(mass * k),
+            tangential_damping=gamma_t,
+            friction_pair=case["particles.friction"], friction_wall=case["wall.friction"],
+            contact_time=contact_time, stable_time_step=stable, time_step=dt)

@@ -1,0 +1,112 @@
+"""Cell lists and the Verlet neighbour list for a long thin tube.
+
+Cells are boxes of at least the list cutoff d + skin: many along x, a few across (the 7 mm tube holds
+4 x 4). Grains are sorted by cell at every rebuild, so neighbours sit close in memory; grains past
+the outlet are dropped in the same pass.
+"""
+
+import numba as nb
+
+from . import params as P
+
+
+@nb.njit(cache=True, inline="always")
+def _cell_index(x, y, z, p, shape):
+    """(cx, cy, cz) of a point, clamped to the grid (clamping only merges far cells, never splits)."""
+    cx = int((x - p[P.CELL_X0]) / p[P.CELL_DX])
+    half = p[P.TUBE_RADIUS]
+    cy = int((y + half) / p[P.CELL_DYZ])
+    cz = int((z + half) / p[P.CELL_DYZ])
+    cx = min(max(cx, 0), shape[P.NCX] - 1)
+    cy = min(max(cy, 0), shape[P.NCY] - 1)
+    cz = min(max(cz, 0), shape[P.NCZ] - 1)
+    return cx, cy, cz
+
+
+@nb.njit(cache=True)
+def sort_and_compact(pos, vel, omg, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+                     counters):
+    """Drop dynamic grains past x = L (counted in counters[REMOVED]), sort the rest by cell.
+
+    Returns the new number of grains. cell_start (ncells + 1) holds each cell's first sorted index.
+    """
+    length = p[P.TUBE_LENGTH]
+    ncy = shape[P.NCY]
+    ncz = shape[P.NCZ]
+    ncells = shape[P.NCX] * ncy * ncz
+    cell_start[:] = 0
+    n_removed = 0
+    for i in range(n):
+        if pos[i, 0] > length and not kin[i]:
+            cell_of[i] = -1
+            n_removed += 1
+            continue
+        cx, cy, cz = _cell_index(pos[i, 0], pos[i, 1], pos[i, 2], p, shape)
+        c = (cx * ncy + cy) * ncz + cz
+        cell_of[i] = c
+        cell_start[c + 1] += 1
+    for c in range(ncells):
+        cell_start[c + 1] += cell_start[c]
+    # counting sort: order[new] = old
+    fill = cell_start[:ncells].copy()
+    for i in range(n):
+        c = cell_of[i]
+        if c >= 0:
+            order[fill[c]] = i
+            fill[c] += 1
+    m = n - n_removed
+    for arr in (pos, vel, omg):
+        for k in range(m):
+            o = order[k]
+            tmp3[k, 0] = arr[o, 0]
+            tmp3[k, 1] = arr[o, 1]
+            tmp3[k, 2] = arr[o, 2]
+        arr[:m] = tmp3[:m]
+    for k in range(m):
+        tmpi[k] = gid[order[k]]
+    gid[:m] = tmpi[:m]
+    for k in range(m):
+        tmpi[k] = kin[order[k]]
+    kin[:m] = tmpi[:m]
+    counters[P.REMOVED] += n_removed
+    return m
+
+
+@nb.njit(cache=True)
+def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
+    """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
+
+    Returns the number of pairs, or -1 if nbr is too small (the caller grows it and calls again).
+    Pairs of two kinematic (feed) grains are skipped.
+    """
+    r = p[P.RADIUS]
+    cut = 2.0 * r + p[P.SKIN]
+    cut2 = cut * cut
+    ncx = shape[P.NCX]
+    ncy = shape[P.NCY]
+    ncz = shape[P.NCZ]
+    cap = nbr.shape[0]
+    k = 0
+    for i in range(n):
+        nbr_start[i] = k
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        zi = pos[i, 2]
+        cx, cy, cz = _cell_index(xi, yi, zi, p, shape)
+        for ax in range(max(cx - 1, 0), min(cx + 2, ncx)):
+            for ay in range(max(cy - 1, 0), min(cy + 2, ncy)):
+                for az in range(max(cz - 1, 0), min(cz + 2, ncz)):
+                    c = (ax * ncy + ay) * ncz + az
+                    for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
+                        if kin[i] and kin[j]:
+                            continue
+                        dx = pos[j, 0] - xi
+                        dy = pos[j, 1] - yi
+                        dz = pos[j, 2] - zi
+                        if dx * dx + dy * dy + dz * dz < cut2:
+                            if k >= cap:
+                                return -1
+                            nbr[k] = j
+                            k += 1
+    nbr_start[n] = k
+    return k

@@ -1,0 +1,51 @@
+"""Index names of the float64 parameter vector passed to the grain kernels (SI units)."""
+
+import numpy as np
+
+DT = 0               # time step, s
+MASS = 1             # grain mass, kg
+RADIUS = 2           # grain radius, m
+INERTIA = 3          # moment of inertia 2/5 m r^2, kg m2
+KN = 4               # normal stiffness, N/m
+GN_PAIR = 5          # normal damping grain-grain, N s/m
+GN_WALL = 6          # normal damping grain-wall, N s/m
+GT = 7               # tangential damping gamma_t, N s/m
+MU_PAIR = 8          # Coulomb coefficient grain-grain
+MU_WALL = 9          # Coulomb coefficient grain-wall
+TUBE_RADIUS = 10     # m
+TUBE_LENGTH = 11     # m
+GX = 12              # gravity vector, m/s2
+GY = 13
+GZ = 14
+FEED_SPEED = 15      # feed piston speed u_in, m/s (0: no feed)
+FEED_MAX_OVERLAP = 16  # piston pauses above this overlap, m
+SKIN = 17            # Verlet skin, m
+CELL_X0 = 18         # lower x edge of the cell grid, m
+CELL_DX = 19         # cell size along x, m
+CELL_DYZ = 20        # cell size across, m
+ROTATION = 21        # 1.0: integrate rotation; 0.0: frictionless, rotation skipped
+NPARAMS = 22
+
+# Integer cell-grid shape vector
+NCX = 0
+NCY = 1
+NCZ = 2
+
+# Counters (int64 vector, cumulative unless noted)
+RELEASED = 0         # feed grains released into the tube
+REMOVED = 1          # grains that left past x = L
+REBUILDS = 2         # neighbour-list rebuilds
+STEPS = 3            # steps taken
+STATUS = 4           # 0 ok; >0 failure code (not cumulative)
+OVERFLOW = 5         # neighbour list overflowed (not cumulative; caller grows the list)
+STALLED_STEPS = 6    # steps the feed piston paused
+NCOUNTERS = 7
+
+# failure codes
+OK = 0
+NONFINITE = 1
+ESCAPED = 2
+
+
+def new_params() -> np.ndarray:
+    return np.zeros(NPARAMS)

@@ -1,0 +1,139 @@
+"""The grain time loop: velocity Verlet (kick-drift-kick) with the feed piston and outlet removal.
+
+Forces that depend on velocity use the half-step velocity, as LAMMPS's fix nve/sphere does.
+"""
+
+import math
+
+import numba as nb
+
+from . import params as P
+from .contacts import FASTMATH, pair_forces, wall_forces
+from .neighbors import build_neighbor_list, sort_and_compact
+
+
+@nb.njit(cache=True, fastmath=FASTMATH)
+def compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
+    """Zero, then accumulate all contact forces and torques of the first n grains."""
+    force[:n] = 0.0
+    torque[:n] = 0.0
+    pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag)
+    wall_forces(pos, vel, omg, kin, n, p, force, torque, diag)
+
+
+@nb.njit(cache=True)
+def rebuild(pos, vel, omg, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+            nbr_start, nbr, counters):
+    """Drop grains past the outlet, sort by cell, rebuild the neighbour list. Returns the new n.
+
+    On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbr and retries).
+    """
+    n = sort_and_compact(pos, vel, omg, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+                         counters)
+    pos_ref[:n] = pos[:n]
+    npairs = build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr)
+    counters[P.OVERFLOW] = 1 if npairs < 0 else 0
+    counters[P.REBUILDS] += 1
+    return n
+
+
+@nb.njit(cache=True, fastmath=FASTMATH)
+def _kick(vel, omg, force, torque, kin, n, p, half_dt):
+    """Half-step velocity update of the dynamic grains (gravity included)."""
+    a = half_dt / p[P.MASS]
+    b = half_dt / p[P.INERTIA]
+    gx = half_dt * p[P.GX]
+    gy = half_dt * p[P.GY]
+    gz = half_dt * p[P.GZ]
+    rotate = p[P.ROTATION] > 0.0
+    for i in range(n):
+        if kin[i]:
+            continue
+        vel[i, 0] += a * force[i, 0] + gx
+        vel[i, 1] += a * force[i, 1] + gy
+        vel[i, 2] += a * force[i, 2] + gz
+        if rotate:
+            omg[i, 0] += b * torque[i, 0]
+            omg[i, 1] += b * torque[i, 1]
+            omg[i, 2] += b * torque[i, 2]
+
+
+@nb.njit(cache=True, fastmath=FASTMATH)
+def _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters):
+    """Move grains one step; release feed grains fully inside the tube.
+
+    Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin or left the tube),
+    and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
+    """
+    dt = p[P.DT]
+    r = p[P.RADIUS]
+    feed_dx = p[P.FEED_SPEED] * dt if feed_moves else 0.0
+    limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
+    outlet = p[P.TUBE_LENGTH]
+    tube2 = p[P.TUBE_RADIUS] * p[P.TUBE_RADIUS]
+    need = 0
+    for i in range(n):
+        if kin[i]:
+            pos[i, 0] += feed_dx
+            if pos[i, 0] >= r:
+                kin[i] = 0
+                counters[P.RELEASED] += 1
+        else:
+            pos[i, 0] += dt * vel[i, 0]
+            pos[i, 1] += dt * vel[i, 1]
+            pos[i, 2] += dt * vel[i, 2]
+            x = pos[i, 0]
+            y = pos[i, 1]
+            z = pos[i, 2]
+            if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+                counters[P.STATUS] = P.NONFINITE
+                return 1
+            if y * y + z * z > tube2 or x < -r:
+                counters[P.STATUS] = P.ESCAPED
+                return 1
+            if x > outlet:
+                need = 1
+        dx = pos[i, 0] - pos_ref[i, 0]
+        dy = pos[i, 1] - pos_ref[i, 1]
+        dz = pos[i, 2] - pos_ref[i, 2]
+        if dx * dx + dy * dy + dz * dz > limit2:
+            need = 1
+    return need
+
+
+@nb.njit(cache=True)
+def advance(nsteps, state_n, pos, vel, omg, force, torque, gid, kin, pos_ref, p, shape, cell_start,
+            cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag):
+    """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
+
+    state_n[0] is the number of grains (updated); forces must be valid for the current state.
+    diag[1] (max feed overlap of the last force evaluation) pauses the feed piston.
+    """
+    n = state_n[0]
+    half_dt = 0.5 * p[P.DT]
+    taken = 0
+    for _ in range(nsteps):
+        _kick(vel, omg, force, torque, kin, n, p, half_dt)
+        feed_moves = diag[1] <= p[P.FEED_MAX_OVERLAP]
+        if not feed_moves:
+            counters[P.STALLED_STEPS] += 1
+        need = _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters)
+        if counters[P.STATUS] != P.OK:
+            break
+        if need:
+            n = rebuild(pos, vel, omg, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3,
+                        tmpi, nbr_start, nbr, counters)
+            if counters[P.OVERFLOW]:
+                break
+        finish_step(pos, vel, omg, force, torque, kin, n, nbr_start, nbr, p, counters, diag)
+        taken += 1
+    state_n[0] = n
+    return taken
+
+
+@nb.njit(cache=True)
+def finish_step(pos, vel, omg, force, torque, kin, n, nbr_start, nbr, p, counters, diag):
+    """Second half of a step: forces at the new positions, then the closing half kick."""
+    compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag)
+    _kick(vel, omg, force, torque, kin, n, p, 0.5 * p[P.DT])
+    counters[P.STEPS] += 1

@@ -1,0 +1,284 @@
+"""The driver: owns the grain arrays, feeds the tube and calls the numba time loop in chunks."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .case import Case
+from .contact import ContactModel
+from .feed import Feed
+from .kernels import params as P
+from .kernels.stepper import advance, compute_forces, finish_step, rebuild
+
+PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
+
+
+class SimulationError(RuntimeError):
+    """A numerical failure (non-finite state, grain outside the tube); the message is one line."""
+
+
+class Simulation:
+    """One case in a tube: grains (and later gas), advanced in time.
+
+    Arrays returned by `positions`, `velocities` and `angular_velocities` are (n, 3) copies in SI
+    units, ordered by grain id (the order of insertion), holding only grains inside the tube.
+    """
+
+    def __init__(self, case: Case):
+        if case["gas.enabled"]:
+            raise NotImplementedError("gas.enabled = true: the gas field is not implemented yet "
+                                      "(set gas.enabled=false for grain-only runs)")
+        self.case = case
+        self.model = ContactModel.from_case(case)
+        self.feed = Feed(case, self.model.mass, case["run.seed"])
+        self.dt = self.model.time_step
+        self._steps = 0
+        self._next_id = 0
+        self._setup_params()
+        self._allocate(self._initial_capacity())
+        self._n = np.zeros(1, dtype=np.int64)
+        self._counters = np.zeros(P.NCOUNTERS, dtype=np.int64)
+        self._diag = np.zeros(2)
+        self._dirty = True        # arrays changed outside the time loop: rebuild + forces first
+        self._feed_tail = None    # x of the last feed layer created
+
+    # ---- set-up -------------------------------------------------------------------------------
+    def _setup_params(self) -> None:
+        c, m = self.case, self.model
+        d = 2 * m.radius
+        p = P.new_params()
+        p[P.DT] = self.dt
+        p[P.MASS], p[P.RADIUS], p[P.INERTIA] = m.mass, m.radius, m.inertia
+        p[P.KN], p[P.GN_PAIR], p[P.GN_WALL], p[P.GT] = (m.stiffness, m.damping_pair, m.damping_wall,
+                                                        m.tangential_damping)
+        p[P.MU_PAIR], p[P.MU_WALL] = m.friction_pair, m.friction_wall
+        p[P.TUBE_RADIUS], p[P.TUBE_LENGTH] = c["tube.diameter"] / 2, c["tube.length"]
+        p[P.GX], p[P.GY], p[P.GZ] = self.gravity
+        p[P.FEED_SPEED] = self.feed.entry_velocity if self.feed.enabled else 0.0
+        p[P.FEED_MAX_OVERLAP] = c["feed.max_overlap"] * d
+        p[P.SKIN] = c["numerics.neighbor_skin"] * d
+        cut = d + p[P.SKIN]
+        p[P.CELL_X0] = -2 * d
+        ncx = max(1, int((c["tube.length"] + 2 * d - p[P.CELL_X0]) / cut))
+        nyz = max(1, int(c["tube.diameter"] / cut))
+        p[P.CELL_DX] = (c["tube.length"] + 2 * d - p[P.CELL_X0]) / ncx
+        p[P.CELL_DYZ] = c["tube.diameter"] / nyz
+        # Rotation only matters through tangential forces; frictionless grains never spin up.
+        p[P.ROTATION] = 1.0 if (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0 else 0.0
+        self._p = p
+        self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
+
+    def _initial_capacity(self) -> int:
+        c = self.case
+        volume = c["tube.length"] * math.pi * c["tube.diameter"] ** 2 / 4
+        grain_volume = math.pi * c["particles.diameter"] ** 3 / 6
+        return int(0.6 * volume / grain_volume) + 8 * len(self.feed.template)
+
+    def _allocate(self, cap: int) -> None:
+        """(Re)allocate all per-grain arrays with capacity cap, keeping the current grains."""
+        old = getattr(self, "_pos", None)
+        n = int(self._n[0]) if old is not None else 0
+        arrays = {}
+        for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
+                                   ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
+                                   ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
+                                   ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
+                                   ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
+                                   ("_cell_of", cap, np.int64), ("_order", cap, np.int64),
+                                   ("_nbr_start", cap + 1, np.int64)]:
+            new = np.zeros(shape, dtype=dtype)
+            if old is not None:
+                new[:n] = getattr(self, name)[:n]
+            arrays[name] = new
+        self.__dict__.update(arrays)
+        self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
+        self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
+        self._dirty = True
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravity vector (m/s2) from the inclination: 0 deg -> -z, 90 deg -> -x."""
+        theta = math.radians(self.case["tube.inclination_deg"])
+        g = self.case["physics.gravity"]
+        return np.array([-g * math.sin(theta), 0.0, -g * math.cos(theta)])
+
+    # ---- grains in and out --------------------------------------------------------------------
+    def add_particles(self, positions, velocities=None, angular_velocities=None) -> np.ndarray:
+        """Insert grains (k x 3 arrays, SI); returns their ids. Positions must lie inside the tube."""
+        pos = np.atleast_2d(np.asarray(positions, dtype=float))
+        k = len(pos)
+        vel = np.zeros((k, 3)) if velocities is None else np.atleast_2d(np.asarray(velocities, float))
+        omg = np.zeros((k, 3)) if angular_velocities is None else np.atleast_2d(
+            np.asarray(angular_velocities, float))
+        for name, arr in [("positions", pos), ("velocities", vel), ("angular_velocities", omg)]:
+            if arr.shape != (k, 3) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} must be a finite ({k}, 3) array, got shape {arr.shape}")
+        r, R, L = self.model.radius, self.case["tube.diameter"] / 2, self.case["tube.length"]
+        rho = np.hypot(pos[:, 1], pos[:, 2])
+        bad = np.flatnonzero((rho > R - r + 0.5 * r) | (pos[:, 0] < 0) | (pos[:, 0] > L))
+        if len(bad):
+            raise ValueError(f"grain {bad[0]} at {pos[bad[0]]} m is outside the tube "
+                             f"(0 <= x <= {L:g} m, sqrt(y^2+z^2) <= R - r)")
+        return self._append(pos, vel, omg, kinematic=False)
+
+    def _append(self, pos, vel, omg, kinematic: bool) -> np.ndarray:
+        n, k = int(self._n[0]), len(pos)
+        if n + k > len(self._pos):
+            self._allocate(max(2 * len(self._pos), n + k))
+        sl = slice(n, n + k)
+        self._pos[sl], self._vel[sl], self._omg[sl] = pos, vel, omg
+        ids = np.arange(self._next_id, self._next_id + k)
+        self._gid[sl], self._kin[sl] = ids, int(kinematic)
+        self._next_id += k
+        self._n[0] = n + k
+        self._dirty = True
+        return ids
+
+    def _refill_feed(self, travel: float) -> None:
+        """Create feed layers so that the piston holds layers for the next `travel` metres."""
+        if not self.feed.enabled:
+            return
+        d = 2 * self.model.radius
+        if self._feed_tail is None:
+            self._append_layer(-d)
+        while self._feed_tail > -d - travel:
+            self._append_layer(self._feed_tail - self.feed.spacing)
+
+    def _append_layer(self, x: float) -> None:
+        layer = self.feed.layer(x)
+        vel = np.zeros_like(layer)
+        vel[:, 0] = self.feed.entry_velocity
+        self._append(layer, vel, np.zeros_like(layer), kinematic=True)
+        self._feed_tail = x
+
+    # ---- time loop ----------------------------------------------------------------------------
+    def _prepare(self) -> None:
+        """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
+        self._rebuild()
+        compute_forces(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
+                       self._nbr, self._p, self._force, self._torque, self._diag)
+        self._dirty = False
+
+    def _rebuild(self) -> None:
+        """Sort, drop outflow and rebuild the neighbour list, growing the list until it fits."""
+        while True:
+            self._n[0] = rebuild(self._pos, self._vel, self._omg, self._gid, self._kin, int(self._n[0]),
+                                 self._pos_ref, self._p, self._shape, self._cell_start, self._cell_of,
+                                 self._order, self._tmp3, self._tmpi, self._nbr_start, self._nbr,
+                                 self._counters)
+            if not self._counters[P.OVERFLOW]:
+                return
+            self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
+
+    def advance(self, seconds: float) -> None:
+        """Advance by `seconds` of simulated time (rounded to whole time steps)."""
+        if seconds < 0:
+            raise ValueError(f"advance(seconds={seconds}) needs seconds >= 0")
+        remaining = int(round(seconds / self.dt))
+        # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
+        speed = self._p[P.FEED_SPEED]
+        chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
+        while remaining > 0:
+            steps = min(chunk, remaining)
+            feed_travel = speed * steps * self.dt
+            self._refill_feed(feed_travel)
+            if self._dirty:
+                self._prepare()
+            taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._torque,
+                            self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
+                            self._cell_of, self._order, self._tmp3, self._tmpi, self._nbr_start,
+                            self._nbr, self._counters, self._diag)
+            if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
+                self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
+                self._rebuild()
+                finish_step(self._pos, self._vel, self._omg, self._force, self._torque, self._kin,
+                            int(self._n[0]), self._nbr_start, self._nbr, self._p, self._counters,
+                            self._diag)
+                taken += 1
+            self._steps += taken
+            remaining -= taken
+            self._check_status()
+            if self._feed_tail is not None:
+                self._feed_tail = self._kinematic_tail()
+
+    def _kinematic_tail(self) -> float:
+        """x of the deepest feed layer (the piston moves all layers together)."""
+        n = int(self._n[0])
+        kin = self._kin[:n] == 1
+        return float(self._pos[:n, 0][kin].min()) if kin.any() else -math.inf
+
+    def _check_status(self) -> None:
+        status = self._counters[P.STATUS]
+        if status == P.OK:
+            return
+        what = {P.NONFINITE: "a grain position became non-finite (NaN/Inf)",
+                P.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
+        raise SimulationError(f"{what} at t = {self.time:.6f} s; the time step or the contact "
+                              f"parameters are too aggressive for this case")
+
+    # ---- read-only state ----------------------------------------------------------------------
+    def _dynamic_order(self) -> np.ndarray:
+        n = int(self._n[0])
+        idx = np.flatnonzero(self._kin[:n] == 0)
+        return idx[np.argsort(self._gid[idx], kind="stable")]
+
+    def _view(self, arr: np.ndarray) -> np.ndarray:
+        out = arr[self._dynamic_order()]
+        out.flags.writeable = False
+        return out
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Grain centres (n, 3), m; x along the tube, y and z across."""
+        return self._view(self._pos)
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """Grain velocities (n, 3), m/s."""
+        return self._view(self._vel)
+
+    @property
+    def angular_velocities(self) -> np.ndarray:
+        """Grain angular velocities (n, 3), rad/s."""
+        return self._view(self._omg)
+
+    @property
+    def ids(self) -> np.ndarray:
+        """Ids of the grains in the tube, in the order of the state arrays."""
+        return self._view(self._gid)
+
+    @property
+    def time(self) -> float:
+        """Simulated time, s."""
+        return self._steps * self.dt
+
+    @property
+    def n_particles(self) -> int:
+        """Grains inside the tube (released from the feed, not yet past the outlet)."""
+        n = int(self._n[0])
+        return int(np.count_nonzero(self._kin[:n] == 0))
+
+    @property
+    def mass_in(self) -> float:
+        """Cumulative grain mass released into the tube by the feed, kg."""
+        return self._counters[P.RELEASED] * self.model.mass
+
+    @property
+    def mass_out(self) -> float:
+        """Cumulative grain mass that left past the outlet, kg."""
+        return self._counters[P.REMOVED] * self.model.mass
+
+    @property
+    def max_overlap(self) -> float:
+        """Largest grain-grain or grain-wall overlap at the last force evaluation, m."""
+        return float(self._diag[0])
+
+    @property
+    def kinetic_energy(self) -> float:
+        """Translational + rotational kinetic energy of the grains in the tube, J."""
+        n = int(self._n[0])
+        dyn = self._kin[:n] == 0
+        m, inertia = self.model.mass, self.model.inertia
+        return float(0.5 * m * (self._vel[:n][dyn] ** 2).sum() + 0.5 * inertia * (self._omg[:n][dyn] ** 2).sum())
