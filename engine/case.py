@@ -69,6 +69,11 @@ class Key:
                 raise CaseError(f"{self.name} = {value!r} must be an integer: allowed {self.allowed()}")
             return int(value)
         if self.kind is float:
+            if isinstance(value, str):  # PyYAML (YAML 1.1) reads 1e-9, without a dot, as a string
+                try:
+                    value = float(value)
+                except ValueError:
+                    pass
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise CaseError(f"{self.name} = {value!r} must be a number ({self.unit}): "
                                 f"allowed {self.allowed()}")
@@ -126,13 +131,42 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("gas.nodes_y", 2, "1", "Gas grid nodes across the tube (y).", kind=int, low=1, high=64),
     Key("gas.nodes_z", 2, "1", "Gas grid nodes across the tube (z).", kind=int, low=1, high=64),
     Key("numerics.time_step_fraction", 0.05, "1",
-        "Time step as a fraction of the grain-grain contact time t_c; refused above the stable limit.",
+        "Time step as a fraction of the grain-grain contact time t_c (rounded down to divide "
+        "output.interval); refused above the stable limit.",
         low=0.0, low_open=True, high=10.0),
     Key("numerics.neighbor_skin", 0.15, "1",
         "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "
         "moved half of it).", low=0.0, low_open=True, high=2.0),
     Key("run.seed", 0, "1", "Seed of the random numbers (feed layer orientations).", kind=int,
         low=0, high=2**31 - 1),
+    Key("run.duration", 5.0, "s",
+        "Simulated time to run; with run.until_steady the largest time allowed.", low=0.0,
+        low_open=True, high=1e5),
+    Key("run.until_steady", False, "",
+        "Stop once the tube has filled and the mean pressure drop has converged (see run.steady_*).",
+        kind=bool),
+    Key("run.steady_settle", 1.0, "s",
+        "Time after the first grains leave the tube that is discarded before averaging.",
+        low=0.0, high=1e4),
+    Key("run.steady_min_window", 2.0, "s", "Shortest averaging window before a steady stop.",
+        low=0.0, low_open=True, high=1e4),
+    Key("run.steady_rel_error", 0.03, "1",
+        "Steady when the batch-means standard error of the mean pressure drop (10 batches) is "
+        "below this fraction of the mean.", low=0.0, low_open=True, high=1.0),
+    Key("run.checkpoint_interval", 600.0, "s (wall)",
+        "Wall-clock seconds between checkpoints of a running case (0: never).", low=0.0, high=1e6),
+    Key("output.interval", 0.01, "s", "Simulated time between output frames (time series and slices).",
+        low=0.0, low_open=True, high=100.0),
+    Key("output.slice_width", 0.0035, "m", "Width of the slices along the tube for slice fields.",
+        low=0.0, low_open=True, high=1.0),
+    Key("output.snapshots", False, "", "Write grain snapshots (positions, velocities) in a window.",
+        kind=bool),
+    Key("output.snapshot_x_min", 0.2, "m", "Lower x of the snapshot window.", low=0.0, high=100.0),
+    Key("output.snapshot_x_max", 0.32, "m", "Upper x of the snapshot window.", low=0.0, high=100.0),
+    Key("output.snapshot_t_min", 0.0, "s", "Time from which snapshots are written.", low=0.0, high=1e5),
+    Key("output.snapshot_interval", 0.01, "s",
+        "Simulated time between snapshots (a multiple of output.interval).", low=0.0, low_open=True,
+        high=100.0),
 ]}
 
 
@@ -242,6 +276,12 @@ class Case:
             raise CaseError(f"particles.diameter = {d:g} m must be < tube.diameter / 2 = {D / 2:g} m")
         if self["tube.length"] < 4 * d:
             raise CaseError(f"tube.length = {self['tube.length']:g} m must be >= 4 particles.diameter")
+        if self["output.snapshot_x_max"] <= self["output.snapshot_x_min"]:
+            raise CaseError("output.snapshot_x_max must be > output.snapshot_x_min")
+        ratio = self["output.snapshot_interval"] / self["output.interval"]
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise CaseError(f"output.snapshot_interval = {self['output.snapshot_interval']:g} s must be a "
+                            f"whole multiple of output.interval = {self['output.interval']:g} s")
 
 
 def keys_markdown() -> str:

@@ -1,4 +1,4 @@
-"""The `plugsim` command line: keys, check, bench (run arrives with the case-file issue)."""
+"""The `plugsim` command line: run, keys, check, bench."""
 
 from __future__ import annotations
 
@@ -35,6 +35,23 @@ def _check(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run(args: argparse.Namespace) -> int:
+    """Run one case to a case file; numerical failures exit 1 with a one-line reason."""
+    import logging
+
+    from .run import RunError, run_case
+
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
+                        format="plugsim: %(message)s")
+    case = Case.from_yaml(args.case, args.set)
+    try:
+        run_case(case, args.out, quiet=args.quiet)
+    except RunError as err:
+        print(f"plugsim: run failed: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
 def _bench(args: argparse.Namespace) -> int:
     from . import bench
     return bench.main(args.rest)
@@ -51,6 +68,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
     p.set_defaults(func=_check)
+    p = sub.add_parser("run", help="run one case from an empty tube and write its NetCDF case file")
+    p.add_argument("case", help="case YAML, e.g. config/cases/horizontal.yaml")
+    p.add_argument("--out", required=True, help="case file to write (NetCDF), e.g. results/h.nc")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
+    p.set_defaults(func=_run)
     p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
     p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=_bench)

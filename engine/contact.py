@@ -75,6 +75,8 @@ class ContactModel:
         stable_tangential = 2.0 * (mass / 7.0) / gamma_t if gamma_t > 0 else math.inf
         stable = min(stable_normal, stable_tangential)
         dt = case["numerics.time_step_fraction"] * contact_time
+        # Round down so that an output interval is a whole number of steps (frames fall on t = k dt).
+        dt = case["output.interval"] / math.ceil(case["output.interval"] / dt)
         if dt > stable:
             raise CaseError(
                 f"numerics.time_step_fraction = {case['numerics.time_step_fraction']:g} gives a time step "

@@ -10,6 +10,7 @@ from .case import Case
 from .contact import ContactModel
 from .feed import Feed
 from .kernels import params as P
+from .kernels import slices as S
 from .kernels.stepper import advance, compute_forces, finish_step, rebuild
 
 PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
@@ -84,6 +85,7 @@ class Simulation:
         for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
                                    ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
                                    ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
+                                   ("_wall_normal", cap, float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
                                    ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
                                    ("_cell_of", cap, np.int64), ("_order", cap, np.int64),
@@ -158,7 +160,7 @@ class Simulation:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
         compute_forces(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
-                       self._nbr, self._p, self._force, self._torque, self._diag)
+                       self._nbr, self._p, self._force, self._torque, self._wall_normal, self._diag)
         self._dirty = False
 
     def _rebuild(self) -> None:
@@ -187,13 +189,14 @@ class Simulation:
             if self._dirty:
                 self._prepare()
             taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._torque,
-                            self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
+                            self._wall_normal, self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
                             self._cell_of, self._order, self._tmp3, self._tmpi, self._nbr_start,
                             self._nbr, self._counters, self._diag)
             if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
-                finish_step(self._pos, self._vel, self._omg, self._force, self._torque, self._kin,
+                finish_step(self._pos, self._vel, self._omg, self._force, self._torque, self._wall_normal,
+                            self._kin,
                             int(self._n[0]), self._nbr_start, self._nbr, self._p, self._counters,
                             self._diag)
                 taken += 1
@@ -274,6 +277,48 @@ class Simulation:
     def max_overlap(self) -> float:
         """Largest grain-grain or grain-wall overlap at the last force evaluation, m."""
         return float(self._diag[0])
+
+    def slice_fields(self, width: float) -> dict[str, np.ndarray]:
+        """Slice averages over slices of `width` (m) from the inlet (papers §3.2).
+
+        Each grain counts with the fraction of its volume inside the slice. Returns porosity,
+        velocity (axial, m/s), drag_force and particle_force (mean axial force per grain, N; particle
+        force = contacts + walls + axial gravity), wall_stress (normal cylinder-wall force per wall
+        area, Pa) and granular_temperature (mean kinetic energy per grain minus that of the slice's
+        mean motion, J). Means over empty slices are NaN.
+        """
+        nslices = int(round(self.case["tube.length"] / width))
+        acc = np.zeros((nslices, S.NCOLS))
+        n = int(self._n[0])
+        S.accumulate_slices(self._pos, self._vel, self._force, self._drag_forces(), self._wall_normal,
+                            self._kin, n, self.model.radius, self.model.mass, float(self.gravity[0]),
+                            width, acc)
+        area = math.pi * self.case["tube.diameter"] ** 2 / 4
+        weight = acc[:, S.WEIGHT]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = {name: acc[:, col] / weight for name, col in
+                    [("velocity", S.VEL), ("drag_force", S.DRAG), ("particle_force", S.PART),
+                     ("vy", S.VY), ("vz", S.VZ), ("v2", S.KIN)]}
+        temperature = 0.5 * self.model.mass * (mean["v2"] - mean["velocity"] ** 2 - mean["vy"] ** 2
+                                               - mean["vz"] ** 2)
+        return {"porosity": 1.0 - acc[:, S.SOLID] / (area * width),
+                "velocity": mean["velocity"], "drag_force": mean["drag_force"],
+                "particle_force": mean["particle_force"],
+                "wall_stress": acc[:, S.WALL] / (math.pi * self.case["tube.diameter"] * width),
+                "granular_temperature": np.maximum(temperature, 0.0)}
+
+    @property
+    def pressure_drop(self) -> float:
+        """Gas pressure at the inlet minus at the outlet, Pa (0 while the gas is off)."""
+        return 0.0
+
+    def gas_pressure_slices(self, width: float) -> np.ndarray:
+        """Gas pressure P' averaged over slices of `width` (m), Pa (zeros while the gas is off)."""
+        return np.zeros(int(round(self.case["tube.length"] / width)))
+
+    def _drag_forces(self) -> np.ndarray:
+        """Per-grain gas drag force (capacity x 3), N (zero while the gas is off)."""
+        return np.zeros_like(self._force)
 
     @property
     def kinetic_energy(self) -> float:

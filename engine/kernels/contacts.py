@@ -115,14 +115,16 @@ def pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def _wall_contact(i, delta, nx, ny, nz, vel, omg, p, force, torque):
-    """Contact of grain i with a wall of outward normal n (grain -> wall) and overlap delta > 0."""
+    """Contact of grain i with a wall of outward normal n (grain -> wall), overlap delta > 0.
+
+    Returns the normal force magnitude, N."""
     r = p[P.RADIUS]
     vx = vel[i, 0]
     vy = vel[i, 1]
     vz = vel[i, 2]
     fn = p[P.KN] * delta + p[P.GN_WALL] * (vx * nx + vy * ny + vz * nz)
     if fn <= 0.0:
-        return
+        return 0.0
     wx = omg[i, 0]
     wy = omg[i, 1]
     wz = omg[i, 2]
@@ -134,11 +136,14 @@ def _wall_contact(i, delta, nx, ny, nz, vel, omg, p, force, torque):
     torque[i, 0] += r * (ny * ftz - nz * fty)
     torque[i, 1] += r * (nz * ftx - nx * ftz)
     torque[i, 2] += r * (nx * fty - ny * ftx)
+    return fn
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def wall_forces(pos, vel, omg, kin, n, p, force, torque, diag):
-    """Add cylinder-wall and inlet-wall forces on dynamic grains; raises diag[0] to the wall overlap."""
+def wall_forces(pos, vel, omg, kin, n, p, force, torque, wall_normal, diag):
+    """Add cylinder-wall and inlet-wall forces on dynamic grains; raises diag[0] to the wall overlap.
+
+    wall_normal[i] receives the normal force of the cylinder on grain i (N, 0 without contact)."""
     r = p[P.RADIUS]
     inner = p[P.TUBE_RADIUS] - r
     max_overlap = diag[0]
@@ -148,11 +153,12 @@ def wall_forces(pos, vel, omg, kin, n, p, force, torque, diag):
         y = pos[i, 1]
         z = pos[i, 2]
         rho2 = y * y + z * z
+        wall_normal[i] = 0.0
         if rho2 > inner * inner:
             rho = math.sqrt(rho2)
             delta = rho - inner  # analytic cylinder: overlap = rho + r - R
             max_overlap = max(max_overlap, delta)
-            _wall_contact(i, delta, 0.0, y / rho, z / rho, vel, omg, p, force, torque)
+            wall_normal[i] = _wall_contact(i, delta, 0.0, y / rho, z / rho, vel, omg, p, force, torque)
         x = pos[i, 0]
         if x < r:
             delta = r - x

@@ -13,12 +13,12 @@ from .neighbors import build_neighbor_list, sort_and_compact
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
+def compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag):
     """Zero, then accumulate all contact forces and torques of the first n grains."""
     force[:n] = 0.0
     torque[:n] = 0.0
     pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag)
-    wall_forces(pos, vel, omg, kin, n, p, force, torque, diag)
+    wall_forces(pos, vel, omg, kin, n, p, force, torque, wall_normal, diag)
 
 
 @nb.njit(cache=True)
@@ -102,8 +102,8 @@ def _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters):
 
 
 @nb.njit(cache=True)
-def advance(nsteps, state_n, pos, vel, omg, force, torque, gid, kin, pos_ref, p, shape, cell_start,
-            cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag):
+def advance(nsteps, state_n, pos, vel, omg, force, torque, wall_normal, gid, kin, pos_ref, p, shape,
+            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag):
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
@@ -125,15 +125,15 @@ def advance(nsteps, state_n, pos, vel, omg, force, torque, gid, kin, pos_ref, p,
                         tmpi, nbr_start, nbr, counters)
             if counters[P.OVERFLOW]:
                 break
-        finish_step(pos, vel, omg, force, torque, kin, n, nbr_start, nbr, p, counters, diag)
+        finish_step(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
         taken += 1
     state_n[0] = n
     return taken
 
 
 @nb.njit(cache=True)
-def finish_step(pos, vel, omg, force, torque, kin, n, nbr_start, nbr, p, counters, diag):
+def finish_step(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
     """Second half of a step: forces at the new positions, then the closing half kick."""
-    compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag)
+    compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
     _kick(vel, omg, force, torque, kin, n, p, 0.5 * p[P.DT])
     counters[P.STEPS] += 1

@@ -233,3 +233,31 @@ def test_add_particles_refuses_grains_outside_the_tube():
     sim = Simulation(grain_case())
     with pytest.raises(ValueError, match="outside the tube"):
         sim.add_particles([[0.1, 0, 0.0035]])
+
+
+def test_slice_fields_weight_grains_by_their_volume_in_each_slice():
+    sim = Simulation(grain_case("physics.gravity=0", "tube.length=0.0105"))
+    width = 0.0035
+    # one grain centred on the first slice boundary (half its volume on each side), one inside slice 3
+    sim.add_particles([[width, 0, 0], [2.5 * width, 0, 0]], [[0.2, 0, 0], [-0.1, 0.3, 0]])
+    sim.advance(0.0)
+    sim._prepare()
+    fields = sim.slice_fields(width)
+    vp, area = math.pi * D_GRAIN**3 / 6, math.pi * R_TUBE**2
+    np.testing.assert_allclose(1 - fields["porosity"], np.array([0.5, 0.5, 1.0]) * vp / (area * width),
+                               rtol=1e-12)
+    np.testing.assert_allclose(fields["velocity"], [0.2, 0.2, -0.1], rtol=1e-12)
+    # a lone grain has no motion relative to its slice's mean: zero granular temperature
+    np.testing.assert_allclose(fields["granular_temperature"], 0.0, atol=1e-20)
+    np.testing.assert_allclose(fields["wall_stress"], 0.0)
+
+
+def test_wall_stress_of_a_resting_grain_is_its_weight_over_the_wall_area():
+    sim = Simulation(grain_case())
+    resting_on_floor(sim)
+    sim.advance(0.01)
+    width = 0.0035
+    fields = sim.slice_fields(width)
+    # the grain (at x = 0.05 m, well inside one slice) presses the wall with m g
+    expect = sim.model.mass * 9.81 / (math.pi * 2 * R_TUBE * width)
+    assert np.nansum(fields["wall_stress"]) == pytest.approx(expect, rel=1e-6)

@@ -1,0 +1,156 @@
+"""The case file: time series, slice fields and optional grain snapshots, written as NetCDF4.
+
+Series are gathered in memory (xarray cannot append along a dimension) and written once, to a
+temporary name that is renamed into place only when complete.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+SERIES = {  # name: (units, long_name)
+    "pressure_drop": ("Pa", "gas pressure at the inlet minus at the outlet"),
+    "n_particles": ("1", "grains inside the tube"),
+    "mass_in": ("kg", "cumulative grain mass fed into the tube"),
+    "mass_out": ("kg", "cumulative grain mass that left past the outlet"),
+    "kinetic_energy": ("J", "translational plus rotational kinetic energy of the grains in the tube"),
+    "max_overlap": ("1", "largest grain-grain or grain-wall overlap, fraction of the grain diameter"),
+}
+FIELDS = {
+    "porosity": ("1", "slice porosity (grains weighted by their volume in the slice)"),
+    "velocity": ("m s-1", "mean axial grain velocity in the slice (volume-weighted)"),
+    "drag_force": ("N", "mean axial gas drag force per grain in the slice"),
+    "particle_force": ("N", "mean axial contact + wall + gravity force per grain in the slice"),
+    "wall_stress": ("Pa", "normal stress of the grains on the tube wall in the slice"),
+    "granular_temperature": ("J", "mean grain kinetic energy minus that of the slice's mean motion"),
+    "gas_pressure": ("Pa", "gas pressure relative to the background pressure, slice average"),
+}
+
+
+class Recorder:
+    """Collects output frames of a running simulation."""
+
+    def __init__(self, case):
+        self.case = case
+        self.width = case["output.slice_width"]
+        self.series = {name: [] for name in SERIES}
+        self.fields = {name: [] for name in FIELDS}
+        self.times: list[float] = []
+        self.snapshots: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._frames_per_snapshot = int(round(case["output.snapshot_interval"] / case["output.interval"]))
+
+    def sample(self, sim) -> None:
+        """Record one frame of `sim` (a Simulation)."""
+        self.times.append(sim.time)
+        d = 2 * sim.model.radius
+        values = {"pressure_drop": sim.pressure_drop, "n_particles": sim.n_particles,
+                  "mass_in": sim.mass_in, "mass_out": sim.mass_out,
+                  "kinetic_energy": sim.kinetic_energy, "max_overlap": sim.max_overlap / d}
+        for name, value in values.items():
+            self.series[name].append(value)
+        fields = sim.slice_fields(self.width)
+        fields["gas_pressure"] = sim.gas_pressure_slices(self.width)
+        for name in FIELDS:
+            self.fields[name].append(fields[name].astype(np.float32))
+        c = self.case
+        if (c["output.snapshots"] and sim.time >= c["output.snapshot_t_min"] - 1e-12
+                and (len(self.times) - 1) % self._frames_per_snapshot == 0):
+            pos, vel, ids = sim.positions, sim.velocities, sim.ids
+            inside = (pos[:, 0] >= c["output.snapshot_x_min"]) & (pos[:, 0] <= c["output.snapshot_x_max"])
+            self.snapshots.append((sim.time, pos[inside].astype(np.float32), vel[inside].astype(np.float32),
+                                   ids[inside]))
+
+    def dataset(self, attrs: dict) -> xr.Dataset:
+        """The case file as an xarray Dataset with CF units and long names."""
+        nslices = len(self.fields["porosity"][0]) if self.times else int(
+            round(self.case["tube.length"] / self.width))
+        x = (np.arange(nslices) + 0.5) * self.width
+        coords = {"time": ("time", np.array(self.times, dtype=float), {"units": "s", "long_name": "simulated time", "axis": "T"}),
+                  "x": ("x", x, {"units": "m", "long_name": "slice centre along the tube axis from the inlet", "axis": "X"})}
+        data = {}
+        for name, (units, long_name) in SERIES.items():
+            dtype = np.int64 if name == "n_particles" else float
+            data[name] = ("time", np.array(self.series[name], dtype=dtype), {"units": units, "long_name": long_name})
+        for name, (units, long_name) in FIELDS.items():
+            values = np.array(self.fields[name], dtype=np.float32).reshape(len(self.times), nslices)
+            data[name] = (("time", "x"), values, {"units": units, "long_name": long_name})
+        ds = xr.Dataset(data, coords=coords, attrs=attrs)
+        if self.case["output.snapshots"]:
+            ds = ds.merge(self._snapshot_dataset())
+        return ds
+
+    def _snapshot_dataset(self) -> xr.Dataset:
+        """Snapshots as a CF contiguous ragged array (sample dimension `grain`)."""
+        times = np.array([s[0] for s in self.snapshots], dtype=float)
+        counts = np.array([len(s[1]) for s in self.snapshots], dtype=np.int64)
+        stack = (lambda k, shape: np.concatenate([s[k] for s in self.snapshots])
+                 if self.snapshots else np.zeros(shape))
+        return xr.Dataset(
+            {"snapshot_count": ("snapshot_time", counts, {
+                "long_name": "grains in the snapshot window at each snapshot time",
+                "sample_dimension": "grain", "units": "1"}),
+             "snapshot_position": (("grain", "xyz"), stack(1, (0, 3)).astype(np.float32), {
+                 "units": "m", "long_name": "grain centre (x along the tube, y and z across)"}),
+             "snapshot_velocity": (("grain", "xyz"), stack(2, (0, 3)).astype(np.float32), {
+                 "units": "m s-1", "long_name": "grain velocity"}),
+             "snapshot_grain_id": ("grain", stack(3, (0,)).astype(np.int64), {
+                 "units": "1", "long_name": "grain id (order of entry into the tube)"})},
+            coords={"snapshot_time": ("snapshot_time", times, {"units": "s", "long_name": "snapshot time"}),
+                    "xyz": ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})})
+
+
+def global_attributes(case, extra: dict) -> dict:
+    """CF global attributes: provenance, the full configuration, flat geometry for readers."""
+    from . import __version__
+    attrs = {
+        "Conventions": "CF-1.13",
+        "title": "plugsim case: dense-phase pneumatic conveying in a tube",
+        "source": f"plugsim {__version__}",
+        "history": f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} plugsim run",
+        "references": "Strauss, McNamara, Herrmann: Plug conveying in a horizontal tube; "
+                      "Strauss et al.: Plug conveying in a vertical tube",
+        "engine_version": __version__,
+        "config_yaml": case.to_yaml(),
+        "seed": case["run.seed"],
+        "tube_length": case["tube.length"], "tube_diameter": case["tube.diameter"],
+        "particle_diameter": case["particles.diameter"], "particle_density": case["particles.density"],
+        "inclination_deg": case["tube.inclination_deg"],
+    }
+    attrs.update(extra)
+    return attrs
+
+
+def write_atomically(ds: xr.Dataset, out: str | Path) -> None:
+    """Write ds to `out` via a temporary file in the same folder, renamed only when complete."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f"{out.name}.tmp-{os.getpid()}")
+    encoding = {name: {"zlib": True, "complevel": 4, "shuffle": True}
+                for name, var in ds.data_vars.items() if var.dtype.kind in "fiu"}
+    for name, var in ds.data_vars.items():
+        if var.dtype.kind == "f":
+            encoding[name]["_FillValue"] = None if name in SERIES else float("nan")
+    try:
+        ds.to_netcdf(tmp, format="NETCDF4", engine="netcdf4", encoding=encoding)
+        with open(tmp, "rb") as handle:
+            os.fsync(handle.fileno())
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def batch_means_error(values: np.ndarray, batches: int = 10) -> tuple[float, float]:
+    """Mean and its batch-means standard error (values split into `batches` equal batches)."""
+    values = np.asarray(values, dtype=float)
+    size = len(values) // batches
+    if size < 1:
+        return float(values.mean()) if len(values) else math.nan, math.inf
+    means = values[: size * batches].reshape(batches, size).mean(axis=1)
+    return float(values.mean()), float(means.std(ddof=1) / math.sqrt(batches))

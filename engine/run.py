@@ -1,0 +1,153 @@
+"""Run one case from an empty tube to a case file: run length, progress, checkpoints, failures."""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import math
+import os
+import pickle
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .case import Case
+from .output import Recorder, batch_means_error, global_attributes, write_atomically
+from .simulation import Simulation, SimulationError
+
+log = logging.getLogger("plugsim")
+
+MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
+
+
+class RunError(RuntimeError):
+    """A run stopped for a numerical reason; the message is one line."""
+
+
+def checkpoint_path(out: Path) -> Path:
+    return out.with_name(out.name + ".ckpt")
+
+
+def case_digest(case: Case) -> str:
+    return hashlib.sha256(case.to_yaml().encode()).hexdigest()[:16]
+
+
+def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
+    """(start, end) of a converged steady window of the pressure drop, or None if not yet steady.
+
+    The tube counts as filled once grains have left it; run.steady_settle seconds after that the
+    window opens, and the run is steady when the window is at least run.steady_min_window long and
+    the batch-means standard error of the mean pressure drop is below run.steady_rel_error of it.
+    """
+    t = np.asarray(recorder.times)
+    out = np.asarray(recorder.series["mass_out"])
+    if not len(t) or out[-1] <= 0:
+        return None
+    start = t[np.argmax(out > 0)] + case["run.steady_settle"]
+    inside = t >= start
+    if t[-1] - start < case["run.steady_min_window"]:
+        return None
+    mean, error = batch_means_error(np.asarray(recorder.series["pressure_drop"])[inside])
+    if mean > 0 and error < case["run.steady_rel_error"] * mean:
+        return float(start), float(t[-1])
+    return None
+
+
+class Progress:
+    """A terminal progress bar (tqdm) or nothing in quiet mode."""
+
+    def __init__(self, total: float, quiet: bool, initial: float = 0.0):
+        self.bar = None
+        if not quiet:
+            from tqdm import tqdm
+            self.bar = tqdm(total=round(total, 6), initial=round(initial, 6), unit="s(sim)",
+                            bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}] {postfix}",
+                            file=sys.stderr, disable=not sys.stderr.isatty())
+
+    def update(self, sim: Simulation, step: float) -> None:
+        if self.bar is not None:
+            self.bar.update(step)
+            self.bar.set_postfix_str(f"grains {sim.n_particles}, dp {sim.pressure_drop / 100:.1f} hPa")
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as handle:
+        pickle.dump({"digest": digest, "sim": sim, "recorder": recorder}, handle, protocol=5)
+    os.replace(tmp, path)
+
+
+def _load_checkpoint(path: Path, digest: str):
+    if not path.exists():
+        return None
+    with open(path, "rb") as handle:
+        state = pickle.load(handle)
+    if state.get("digest") != digest:
+        log.warning("ignoring checkpoint %s: it belongs to a different case configuration", path)
+        return None
+    return state["sim"], state["recorder"]
+
+
+def run_case(case: Case, out: str | Path, quiet: bool = True) -> Path:
+    """Run `case` from an empty tube (or its checkpoint) and write the case file `out`."""
+    out = Path(out)
+    digest = case_digest(case)
+    ckpt = checkpoint_path(out)
+    resumed = _load_checkpoint(ckpt, digest)
+    if resumed:
+        sim, recorder = resumed
+        log.info("resuming %s from t = %.3f s", out, sim.time)
+    else:
+        sim, recorder = Simulation(case), Recorder(case)
+        recorder.sample(sim)
+    log.info("case %s: dt = %.3g s, %d gas nodes, feed %.3g kg/h, until %s", out.name, sim.dt,
+             case["gas.nodes_x"] * case["gas.nodes_y"] * case["gas.nodes_z"] if case["gas.enabled"] else 0,
+             case["feed.mass_flow_kg_h"], "steady" if case["run.until_steady"] else f"{case['run.duration']} s")
+    interval, duration = case["output.interval"], case["run.duration"]
+    frames = int(round(duration / interval))
+    progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
+    last_save = time.monotonic()
+    reason, window = "duration", None
+    try:
+        for _ in range(len(recorder.times) - 1, frames):
+            sim.advance(interval)
+            recorder.sample(sim)
+            _check_health(sim)
+            progress.update(sim, interval)
+            if case["run.until_steady"]:
+                window = steady_window(recorder, case)
+                if window:
+                    reason = "steady"
+                    break
+            if case["run.checkpoint_interval"] > 0 and time.monotonic() - last_save > case["run.checkpoint_interval"]:
+                _save_checkpoint(ckpt, sim, recorder, digest)
+                last_save = time.monotonic()
+    except SimulationError as err:
+        raise RunError(str(err)) from err
+    finally:
+        progress.close()
+    if case["run.until_steady"] and window is None:
+        reason = "max_duration"
+    extra = {"stop_reason": reason, "time_step": sim.dt,
+             "steady_start": window[0] if window else math.nan,
+             "steady_end": window[1] if window else math.nan}
+    write_atomically(recorder.dataset(global_attributes(case, extra)), out)
+    if ckpt.exists():
+        ckpt.unlink()
+    log.info("wrote %s (%s, t = %.3f s)", out, reason, sim.time)
+    return out
+
+
+def _check_health(sim: Simulation) -> None:
+    d = 2 * sim.model.radius
+    if not math.isfinite(sim.pressure_drop):
+        raise RunError(f"the pressure drop became non-finite at t = {sim.time:.4f} s")
+    if sim.max_overlap > MAX_OVERLAP * d:
+        raise RunError(f"grain overlap {sim.max_overlap / d:.2f} d exceeds the bound {MAX_OVERLAP} d at "
+                       f"t = {sim.time:.4f} s: the time step or stiffness is unsuitable for this case")

@@ -1,0 +1,136 @@
+"""`plugsim run` / run_case: the case file, refusal of bad input, atomic output, checkpoint + resume."""
+
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from engine import Case
+from engine.output import FIELDS, SERIES, Recorder, batch_means_error
+from engine.run import checkpoint_path, run_case, steady_window
+
+ROOT = Path(__file__).resolve().parents[2]
+CASE = ROOT / "config" / "cases" / "horizontal.yaml"
+# Short, cheap grain-only runs: the feed piston pushes a 2.1 cm tube full within 0.6 s.
+SHORT = ["gas.enabled=false", "tube.length=0.021", "run.duration=0.6", "output.snapshots=true",
+         "output.snapshot_x_min=0.0", "output.snapshot_x_max=0.015", "output.snapshot_interval=0.05"]
+
+
+def plugsim(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "engine.cli", *args], capture_output=True, text=True,
+                          cwd=kw.pop("cwd", None), **kw)
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "case.nc"
+    run_case(Case.from_yaml(CASE, SHORT), out)
+    with xr.open_dataset(out) as ds:
+        return ds.load()
+
+
+def test_case_file_has_the_contract_variables_dims_and_units(short_run):
+    ds = short_run
+    assert ds.time.attrs["units"] == "s" and ds.x.attrs["units"] == "m"
+    np.testing.assert_allclose(ds.time, np.arange(61) * 0.01, atol=1e-12)
+    np.testing.assert_allclose(ds.x, (np.arange(6) + 0.5) * 0.0035, rtol=1e-12)
+    for name, (units, _) in {**SERIES, **FIELDS}.items():
+        assert ds[name].attrs["units"] == units and ds[name].attrs["long_name"]
+    for name in SERIES:
+        assert ds[name].dims == ("time",)
+    for name in FIELDS:
+        assert ds[name].dims == ("time", "x")
+    config = Case(__import__("yaml").safe_load(ds.attrs["config_yaml"]))
+    assert config == Case.from_yaml(CASE, SHORT)
+    assert ds.attrs["seed"] == 0 and ds.attrs["engine_version"] and ds.attrs["stop_reason"] == "duration"
+    for name in ["tube_length", "tube_diameter", "particle_diameter", "particle_density", "inclination_deg"]:
+        assert name in ds.attrs
+
+
+def test_case_file_keeps_the_mass_books(short_run):
+    ds = short_run
+    mass = math.pi / 6 * 1.4e-3**3 * 937
+    np.testing.assert_allclose(ds.mass_in - ds.mass_out, ds.n_particles * mass, rtol=1e-12)
+    assert ds.mass_out[-1] > 0, "the short tube should have filled and spilled"
+    # slice porosity integrates to the grains in the tube (grains are whole inside 0 <= x <= L)
+    solid = ((1 - ds.porosity) * 0.0035 * math.pi * 0.0035**2).sum("x")
+    inside = ds.n_particles * math.pi / 6 * 1.4e-3**3
+    np.testing.assert_allclose(solid, inside, rtol=2e-2)  # grains straddling x = L: < 1 grain in ~100
+
+
+def test_snapshots_are_a_ragged_array_inside_the_window(short_run):
+    ds = short_run
+    counts = ds.snapshot_count.values
+    assert ds.snapshot_count.attrs["sample_dimension"] == "grain"
+    assert counts.sum() == ds.sizes["grain"] and len(counts) == 13  # every 0.05 s from t = 0
+    x = ds.snapshot_position.values[:, 0]
+    assert np.all((x >= 0.0) & (x <= 0.015)) and counts[-1] > 0
+
+
+def test_bad_input_is_refused_before_any_work(tmp_path):
+    out = tmp_path / "bad.nc"
+    res = plugsim("run", str(CASE), "--out", str(out), "--set", "particles.friction=-1")
+    assert res.returncode == 2
+    assert res.stderr.strip().splitlines()[-1].startswith("plugsim: error: particles.friction = -1")
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+def test_killed_run_leaves_no_file_and_resumes_to_an_identical_result(tmp_path):
+    args = [str(CASE), *sum((["--set", s] for s in SHORT + ["run.checkpoint_interval=1e-9"]), [])]
+    reference = tmp_path / "reference.nc"
+    assert plugsim("run", args[0], "--out", str(reference), *args[1:]).returncode == 0
+    out = tmp_path / "killed.nc"
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    proc = subprocess.Popen([sys.executable, "-m", "engine.cli", "run", args[0], "--out", str(out), *args[1:]],
+                            env=env, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    ckpt = checkpoint_path(out)
+    while not ckpt.exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert ckpt.exists(), "no checkpoint was written"
+    assert not out.exists(), "a killed run must not leave a file at OUT"
+    res = plugsim("run", args[0], "--out", str(out), *args[1:], env=env)
+    assert res.returncode == 0, res.stderr
+    assert not ckpt.exists()
+    with xr.open_dataset(reference) as a, xr.open_dataset(out) as b:
+        for name in a.data_vars:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+def test_steady_stop_on_a_synthetic_signal():
+    case = Case().with_overrides(["run.steady_settle=1", "run.steady_min_window=2", "run.steady_rel_error=0.03"])
+    rec = Recorder.__new__(Recorder)
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 6, 0.01)
+    fill = 2.0
+    # filling ramp then a noisy plateau of 1000 Pa (10 % noise): the SE of 300 frames is ~0.6 %
+    dp = np.where(t < fill, 1000 * t / fill, 1000) + rng.normal(0, 100, len(t))
+    rec.times, rec.series = [], {"mass_out": [], "pressure_drop": []}
+    stop = None
+    for k, time_k in enumerate(t):
+        rec.times.append(time_k)
+        rec.series["mass_out"].append(1.0 if time_k >= fill else 0.0)
+        rec.series["pressure_drop"].append(dp[k])
+        stop = steady_window(rec, case)
+        if stop:
+            break
+    assert stop is not None
+    assert stop[0] == pytest.approx(fill + 1.0)  # opens steady_settle after the first outflow
+    assert stop[1] - stop[0] == pytest.approx(2.0, abs=0.011)  # the shortest window suffices here
+
+
+def test_batch_means_error_matches_the_standard_error_of_independent_batches():
+    values = np.repeat(np.arange(10.0), 7)  # batch means 0..9
+    mean, error = batch_means_error(values, batches=10)
+    assert mean == pytest.approx(4.5)
+    assert error == pytest.approx(np.std(np.arange(10.0), ddof=1) / math.sqrt(10))
