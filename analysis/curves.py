@@ -1,0 +1,167 @@
+"""Characteristic curves and sweep reductions (H3, H5-H7, H21, V4, V7, V8).
+
+Per case: steady-state pressure drop per tube length (Pa/m; plots show hPa/m) with a batch-means
+standard error, and the transport regime from the slug statistics. Over a sweep: a tidy table,
+one row per case, against the swept parameters.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from .casefile import config, geometry, open_case, require, seconds, slice_faces
+from .slugs import THRESHOLD, detect
+from .statistics import slug_statistics
+
+N_BATCHES = 10
+BULK_FILL = 0.9  # tube "completely filled": slugs cover >= 90 % of its length (time mean)
+DILUTE_SLUG_FRACTION = 0.5  # dilute: slugs no longer hold the majority of the grains (H §3.1)
+ALWAYS = ("gas.superficial_velocity", "feed.mass_flow_kg_h", "tube.inclination_deg")
+
+
+def batch_means(values, n_batches: int = N_BATCHES) -> tuple[float, float]:
+    """Mean and its batch-means standard error std(batch means, ddof=1) / sqrt(n_batches).
+
+    The series is cut into n_batches equal consecutive batches (the first len % n_batches samples
+    are dropped); correlated samples inside a batch then do not shrink the error.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    size = v.size // n_batches
+    if n_batches < 2 or size < 1:
+        raise ValueError(f"need at least {max(n_batches, 2)} samples for {n_batches} batches")
+    means = v[v.size - size * n_batches:].reshape(n_batches, size).mean(axis=1)
+    return float(means.mean()), float(means.std(ddof=1) / np.sqrt(n_batches))
+
+
+def mser_start(values, batch: int = 5) -> int:
+    """Index where the statistically steady part starts (MSER-5 truncation, White 1997).
+
+    Over batches of `batch` samples, choose the truncation k (at most half the series) minimising
+    the squared standard error estimate var(rest) / len(rest) of the remaining batch means.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    n = v.size // batch
+    if n < 4:
+        return 0
+    means = v[: n * batch].reshape(n, batch).mean(axis=1)
+    rest = np.arange(n, 0, -1)  # batches kept for truncation k = 0 .. n-1
+    s1 = np.cumsum(means[::-1])[::-1]
+    s2 = np.cumsum((means**2)[::-1])[::-1]
+    var = s2 / rest - (s1 / rest) ** 2
+    score = var / rest
+    k = int(np.argmin(score[: n // 2 + 1]))
+    return k * batch
+
+
+def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None,
+                         n_batches: int = N_BATCHES) -> dict:
+    """Steady-state pressure drop per tube length (Pa/m) with its batch-means standard error.
+
+    The window starts at t_start (s) or, by default, where MSER-5 finds the transient over, and
+    ends with the run. Returns pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end (s),
+    n_batches.
+    """
+    require(ds, "pressure_drop")
+    geo = geometry(ds)
+    t = seconds(ds["time"].values)
+    dp = np.asarray(ds["pressure_drop"].values, dtype=np.float64) / geo.tube_length
+    first = mser_start(dp) if t_start is None else int(np.searchsorted(t, t_start))
+    mean, sem = batch_means(dp[first:], n_batches)
+    return {"pressure_drop": mean, "pressure_drop_sem": sem, "t_start": float(t[first]),
+            "t_end": float(t[-1]), "n_batches": n_batches}
+
+
+def slug_fractions(ds: xr.Dataset, slugs: pd.DataFrame, t_start: float | None = None) -> dict:
+    """Time means over frames at t >= t_start of the tube length covered by slugs (dense_fraction)
+    and of the grain volume inside slugs (slug_fraction), both from the detected slugs."""
+    geo = geometry(ds)
+    t = seconds(ds["time"].values)
+    t0 = t[0] if t_start is None else t_start
+    frames = t >= t0
+    phi = ds["porosity"].transpose("time", "x").values[frames]
+    width = np.diff(slice_faces(np.asarray(ds["x"].values, dtype=np.float64)))
+    total = np.nansum((1.0 - phi) * width, axis=1) * geo.cross_section / geo.particle_volume
+    in_window = slugs[slugs["time"] >= t0]
+    covered = in_window["length"].sum() / (frames.sum() * geo.tube_length)
+    grains = total.sum()
+    slug_fraction = in_window["n_particles"].sum() / grains if grains > 0 else 0.0
+    return {"dense_fraction": float(covered), "slug_fraction": float(slug_fraction)}
+
+
+def regime(dense_fraction: float, slug_fraction: float, vertical: bool = False,
+           bulk_fill: float = BULK_FILL, dilute_slug_fraction: float = DILUTE_SLUG_FRACTION) -> str:
+    """Transport regime: "bulk" when slugs fill the tube (dense_fraction >= bulk_fill), "dilute"
+    when slugs hold less than dilute_slug_fraction of the grains, otherwise "plug" (vertical) or
+    "slug" (horizontal)."""
+    if dense_fraction >= bulk_fill:
+        return "bulk"
+    if slug_fraction < dilute_slug_fraction:
+        return "dilute"
+    return "plug" if vertical else "slug"
+
+
+def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | None = None,
+                 n_batches: int = N_BATCHES, position: float | None = None,
+                 slugs: pd.DataFrame | None = None) -> dict:
+    """One case reduced to scalars: configuration (dotted keys) and results.
+
+    Results: pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end (s, the steady window),
+    dense_fraction, slug_fraction, regime, slug_rate (1/s) and mean slug_velocity (m/s) and
+    length (m) at `position` (default mid-tube), n_particles (time mean in the window),
+    mass_flow_out (kg/s, slope of mass_out over the window).
+    """
+    geo = geometry(ds)
+    row = dict(config(ds)) if "config_yaml" in ds.attrs else {}
+    steady = steady_pressure_drop(ds, t_start, n_batches)
+    t0 = steady["t_start"]
+    slugs = detect(ds, threshold) if slugs is None else slugs
+    fractions = slug_fractions(ds, slugs, t0)
+    position = geo.tube_length / 2 if position is None else position
+    stats = slug_statistics(slugs, [position], t_start=t0) if len(slugs) else None
+    t = seconds(ds["time"].values)
+    window = t >= t0
+    row.update(steady)
+    row.update(fractions)
+    row["regime"] = regime(fractions["dense_fraction"], fractions["slug_fraction"], geo.vertical)
+    row["slug_rate"] = float(stats["rate"].iloc[0]) if stats is not None else 0.0
+    row["slug_velocity"] = float(stats["slug_velocity_mean"].iloc[0]) if stats is not None else np.nan
+    row["slug_length"] = float(stats["length_mean"].iloc[0]) if stats is not None else np.nan
+    if "n_particles" in ds:
+        row["n_particles"] = float(np.mean(ds["n_particles"].values[window]))
+    if "mass_out" in ds and window.sum() > 1:
+        row["mass_flow_out"] = float(np.polyfit(t[window], ds["mass_out"].values[window], 1)[0])
+    return row
+
+
+def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwargs) -> pd.DataFrame:
+    """Tidy table of case_summary rows over a sweep: one row per case (paths or Datasets).
+
+    Columns: case (file name or index), the parameters (default: every configuration key that
+    differs between cases, plus superficial velocity, mass flow and inclination), then the results.
+    kwargs go to case_summary.
+    """
+    rows = []
+    for k, case in enumerate(cases):
+        ds = open_case(case) if isinstance(case, (str, Path)) else case
+        row = case_summary(ds, **kwargs)
+        row["case"] = Path(case).name if isinstance(case, (str, Path)) else k
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    config_keys = [c for c in table.columns if "." in c]
+    if parameters is None:
+        varying = [c for c in config_keys if table[c].astype(str).nunique() > 1]
+        parameters = list(dict.fromkeys([*varying, *[c for c in ALWAYS if c in table]]))
+    results = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "n_batches",
+               "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
+               "n_particles", "mass_flow_out"]
+    columns = ["case", *parameters, *[c for c in results if c in table]]
+    out = table[columns].sort_values(list(parameters) or ["case"]).reset_index(drop=True)
+    out.attrs["units"] = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s",
+                          "t_end": "s", "slug_rate": "s-1", "slug_velocity": "m s-1",
+                          "slug_length": "m", "mass_flow_out": "kg s-1"}
+    return out

@@ -1,0 +1,228 @@
+"""Matplotlib figures for each figure family of the papers.
+
+Every function draws into `ax` when given and returns its Figure; without `ax` it makes a new
+Figure (matplotlib.figure.Figure: no pyplot state, saved with the Agg canvas). Axes carry SI units
+or the papers' units (hPa/m, cP, kg/h).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+from matplotlib.figure import Figure
+
+from .casefile import geometry, seconds
+
+HPA = 100.0  # Pa per hPa
+PARAMETERS = {  # dotted config key -> (axis label, factor from SI to the label's unit)
+    "gas.superficial_velocity": ("superficial gas velocity $v_s$ (m/s)", 1.0),
+    "feed.mass_flow_kg_h": ("grain mass flow (kg/h)", 1.0),
+    "gas.viscosity": (r"gas viscosity $\eta$ (cP)", 1e3),
+    "particles.friction": (r"Coulomb coefficient $\mu$", 1.0),
+    "wall.friction": (r"wall Coulomb coefficient $\mu_w$", 1.0),
+    "gas.pressure": ("pressure $P_0$ (hPa)", 1.0 / HPA),
+    "tube.inclination_deg": ("inclination (degree)", 1.0),
+}
+STATISTICS = {
+    "rate": "{Slug} rate (1/s)",
+    "min_porosity": "minimal porosity in {slug}s",
+    "max_velocity": "maximal granular velocity (m/s)",
+    "length": "{slug} length (m)",
+    "slug_velocity": "{slug} velocity (m/s)",
+    "n_particles": "grains per {slug}",
+}
+PROFILES = {
+    "porosity": "porosity",
+    "velocity": "granular velocity (m/s)",
+    "drag_force": "force per grain (N)",
+    "particle_force": "force per grain (N)",
+    "wall_stress": "wall stress (Pa)",
+    "granular_temperature": "granular temperature (J)",
+}
+REGIME_MARKERS = {"bulk": "s", "slug": "o", "plug": "o", "dilute": "^"}
+
+
+def _axes(ax=None, size=(5.0, 3.5)):
+    if ax is None:
+        fig = Figure(figsize=size, layout="constrained")
+        return fig, fig.add_subplot()
+    return ax.figure, ax
+
+
+def _words(vertical) -> dict:
+    return {"slug": "plug", "Slug": "Plug"} if vertical else {"slug": "slug", "Slug": "Slug"}
+
+
+def porosity_image(ds: xr.Dataset, ax=None, t_range: tuple[float, float] | None = None,
+                   vmin: float = 0.4, vmax: float = 1.0):
+    """Spatio-temporal porosity image (H1, H4, H20, V3, V5, V6): time (s) across, position (m) up;
+    the papers' grey scale, dark = low porosity, light = high porosity."""
+    fig, ax = _axes(ax, (7.0, 3.0))
+    por = ds["porosity"].transpose("time", "x")
+    t = seconds(ds["time"].values)
+    if t_range is not None:
+        keep = (t >= t_range[0]) & (t <= t_range[1])
+        por, t = por[keep], t[keep]
+    x = np.asarray(ds["x"].values)
+    dt = np.median(np.diff(t)) if t.size > 1 else 0.01
+    dx = np.median(np.diff(x))
+    im = ax.imshow(por.values.T, origin="lower", aspect="auto", cmap="gray", vmin=vmin, vmax=vmax,
+                   extent=(t[0] - dt / 2, t[-1] + dt / 2, x[0] - dx / 2, x[-1] + dx / 2),
+                   interpolation="nearest")
+    axis = geometry(ds).axis_name
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"{axis} (m)")
+    fig.colorbar(im, ax=ax, label="porosity")
+    return fig
+
+
+def slug_rate(stats: pd.DataFrame, ax=None):
+    """Slugs per second passing each position (H8, V9), error bars sqrt(n)/duration."""
+    fig, ax = _axes(ax)
+    words = _words(stats.attrs.get("vertical"))
+    ax.errorbar(stats["x"], stats["rate"], yerr=stats["rate_sem"], fmt="o-", ms=3, capsize=2)
+    ax.set_xlabel(f"{'z' if stats.attrs.get('vertical') else 'x'} (m)")
+    ax.set_ylabel(STATISTICS["rate"].format(**words))
+    ax.set_ylim(bottom=0)
+    return fig
+
+
+def slug_statistic(stats: pd.DataFrame, quantity: str, ax=None):
+    """Mean of a slug property against position with standard-error bars and dotted quartile lines
+    ("half of the slugs lie between"), as H9-H11, V10-V12."""
+    fig, ax = _axes(ax)
+    words = _words(stats.attrs.get("vertical"))
+    ax.errorbar(stats["x"], stats[f"{quantity}_mean"], yerr=stats[f"{quantity}_sem"], fmt="o",
+                ms=3, capsize=2, color="k", label="mean")
+    ax.plot(stats["x"], stats[f"{quantity}_q25"], ":", color="k", label="quartiles")
+    ax.plot(stats["x"], stats[f"{quantity}_q75"], ":", color="k")
+    ax.set_xlabel(f"{'z' if stats.attrs.get('vertical') else 'x'} (m)")
+    ax.set_ylabel(STATISTICS.get(quantity, quantity).format(**words))
+    return fig
+
+
+def slug_profile(profile: xr.Dataset, fields="porosity", ax=None):
+    """Averaged slug profile(s) against dx/d with a standard-error band (H12-H16, V13-V17).
+
+    fields: one name or several sharing a unit (["drag_force", "particle_force"] for H14/V15).
+    The wall stress gets the dotted weight of the resting layer (H15) when it is non-zero.
+    """
+    fig, ax = _axes(ax)
+    fields = [fields] if isinstance(fields, str) else list(fields)
+    x = profile["dx_d"].values
+    for name in fields:
+        mean, sem = profile[name].values, profile[f"{name}_sem"].values
+        line, = ax.plot(x, mean, label=name.replace("_", " "))
+        ax.fill_between(x, mean - sem, mean + sem, color=line.get_color(), alpha=0.25, lw=0)
+    if "wall_stress" in fields and "resting_layer_stress" in profile:
+        rest = profile["resting_layer_stress"].values
+        if np.nanmax(np.abs(rest)) > 0:
+            ax.plot(x, rest, ":", color="k", label="weight of resting layer")
+    axis = "z" if profile.attrs.get("vertical") else "x"
+    ax.set_xlabel(rf"$\Delta {axis}/d$")
+    ax.set_ylabel(PROFILES.get(fields[0], fields[0]))
+    if len(fields) > 1 or "wall_stress" in fields:
+        ax.legend(frameon=False)
+    return fig
+
+
+def cross_section(section: xr.Dataset, ax=None):
+    """Grain volume fraction over the cross-section (H17): black = porosity 100 %, white = 0 %."""
+    fig, ax = _axes(ax, (3.5, 3.5))
+    mm = 1e3
+    y, z = section["y"].values * mm, section["z"].values * mm
+    half = (y[1] - y[0]) / 2
+    ax.imshow(section["volume_fraction"].values, origin="lower", cmap="gray", vmin=0, vmax=1,
+              extent=(y[0] - half, y[-1] + half, z[0] - half, z[-1] + half), interpolation="nearest")
+    ax.set_xlabel("y (mm)")
+    ax.set_ylabel("z (mm)")
+    ax.set_aspect("equal")
+    return fig
+
+
+def cross_section_strip(series: xr.Dataset, ax=None, t_range: tuple[float, float] | None = None):
+    """Consecutive cross-sections side by side, time running left to right (H17)."""
+    if t_range is not None:
+        series = series.sel(snapshot_time=slice(*t_range))
+    frames = series["volume_fraction"].values  # (time, z, y)
+    n = frames.shape[0]
+    fig, ax = _axes(ax, (max(3.0, 0.6 * n), 1.2))
+    strip = np.concatenate(list(frames), axis=1) if n else np.zeros((1, 1))
+    ax.imshow(strip, origin="lower", cmap="gray", vmin=0, vmax=1, interpolation="nearest",
+              aspect="equal")
+    t = seconds(series["snapshot_time"].values)
+    ax.set_yticks([])
+    width = frames.shape[2] if n else 1
+    ax.set_xticks((np.arange(n) + 0.5) * width, [f"{v:.2f}" for v in t], rotation=90, fontsize=6)
+    ax.set_xlabel("time (s)")
+    return fig
+
+
+def velocity_height(profile: xr.Dataset, ax=None, label: str | None = None):
+    """Mean axial grain velocity (m/s) against height z (mm) through a slug (H19)."""
+    fig, ax = _axes(ax, (3.5, 3.5))
+    ax.plot(profile["velocity"].values, profile["height"].values * 1e3, "o-", ms=3, label=label)
+    ax.set_xlabel("granular velocity (m/s)")
+    ax.set_ylabel("height z (mm)")
+    if label:
+        ax.legend(frameon=False)
+    return fig
+
+
+def velocity_height_image(series: xr.Dataset, ax=None):
+    """Axial grain velocity over time (s) and height z (mm) at one position as a slug passes (H18)."""
+    fig, ax = _axes(ax, (6.0, 3.0))
+    t = seconds(series["snapshot_time"].values)
+    h = series["height"].values * 1e3
+    dt = np.median(np.diff(t)) if t.size > 1 else 0.01
+    dh = h[1] - h[0]
+    im = ax.imshow(series["velocity"].transpose("height", "snapshot_time").values, origin="lower",
+                   aspect="auto", cmap="viridis", interpolation="nearest",
+                   extent=(t[0] - dt / 2, t[-1] + dt / 2, h[0] - dh / 2, h[-1] + dh / 2))
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("height z (mm)")
+    fig.colorbar(im, ax=ax, label="granular velocity (m/s)")
+    return fig
+
+
+def radial_profile(profile: xr.Dataset, field: str = "porosity", ax=None):
+    """Radial porosity (V18) or velocity (V19, m/s) through the averaged plug against r/d."""
+    fig, ax = _axes(ax)
+    d = profile.attrs.get("particle_diameter")
+    r = profile["r"].values / d
+    sem = profile[f"{field}_sem"].values if f"{field}_sem" in profile else None
+    ax.errorbar(r, profile[field].values, yerr=sem, fmt="o-", ms=3, capsize=2)
+    ax.set_xlabel("r/d")
+    ax.set_ylabel("porosity" if field == "porosity" else "granular velocity (m/s)")
+    return fig
+
+
+def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocity",
+                          group: str | None = "feed.mass_flow_kg_h", ax=None):
+    """Pressure drop (hPa/m, standard-error bars) against a swept parameter, one curve per group
+    value (H3, V4: against v_s for each mass flow; H5-H7, H21, V7, V8). Markers show the regime:
+    square bulk, circle slug/plug, triangle dilute."""
+    fig, ax = _axes(ax)
+    label, factor = PARAMETERS.get(x, (x, 1.0))
+    groups = [(None, table)] if group is None or group not in table else list(table.groupby(group))
+    for value, part in groups:
+        part = part.sort_values(x)
+        xs = part[x].to_numpy(dtype=float) * factor
+        dp = part["pressure_drop"].to_numpy(dtype=float) / HPA
+        err = part["pressure_drop_sem"].to_numpy(dtype=float) / HPA
+        glabel, gfactor = PARAMETERS.get(group, (group, 1.0)) if group else ("", 1.0)
+        unit = glabel[glabel.rfind("(") + 1:-1] if glabel.endswith(")") else ""
+        name = None if value is None else f"{value * gfactor:g} {unit}".strip()
+        line = ax.errorbar(xs, dp, yerr=err, fmt="-", capsize=2, label=name)[0]
+        if "regime" in part:
+            for regime, marker in REGIME_MARKERS.items():
+                sel = (part["regime"] == regime).to_numpy()
+                if sel.any():
+                    ax.plot(xs[sel], dp[sel], marker, color=line.get_color(), ms=4)
+    ax.set_xlabel(label)
+    ax.set_ylabel("pressure drop (hPa/m)")
+    ax.set_ylim(bottom=0)
+    if group is not None and len(groups) > 1:
+        ax.legend(frameon=False)
+    return fig

@@ -1,0 +1,110 @@
+"""Plot functions: they draw the data given, with units on every axis, and save as PNG."""
+
+import io
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.figure import Figure
+
+from analysis import (cross_section_series, select_slugs, slug_profiles,
+                      slug_statistics, velocity_height_series, plots)
+from analysis.snapshots import time_average_by_height
+
+from . import synthetic as S
+
+
+def saved(fig):
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_porosity_image_shows_the_porosity_in_the_papers_grey_scale(default_case):
+    fig = plots.porosity_image(default_case, t_range=(10.0, 14.0))
+    ax = fig.axes[0]
+    image = ax.get_images()[0]
+    expected = default_case["porosity"].sel(time=slice(10.0, 14.0)).values.T
+    assert np.array_equal(image.get_array(), expected)
+    assert image.get_cmap().name == "gray"  # dark = low porosity
+    assert ax.get_xlabel() == "time (s)" and ax.get_ylabel() == "x (m)"
+    assert saved(fig)
+
+
+def test_statistics_plots_have_error_bars_and_dotted_quartiles(default_slugs):
+    stats = slug_statistics(default_slugs)
+    fig = plots.slug_statistic(stats, "length")
+    ax = fig.axes[0]
+    dotted = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
+    assert len(dotted) == 2
+    assert np.allclose(dotted[0].get_ydata(), stats["length_q25"])
+    assert ax.get_ylabel() == "slug length (m)" and ax.get_xlabel() == "x (m)"
+    fig = plots.slug_rate(stats)
+    assert fig.axes[0].get_ylabel() == "Slug rate (1/s)"
+    assert saved(fig)
+
+
+def test_vertical_statistics_speak_of_plugs_and_height():
+    ds = S.build(S.periodic(0.75, 0.16, 0.024, 4.0), 4.0, inclination_deg=90.0)
+    from analysis import detect
+    stats = slug_statistics(detect(ds))
+    ax = plots.slug_statistic(stats, "min_porosity").axes[0]
+    assert ax.get_xlabel() == "z (m)" and "plug" in ax.get_ylabel()
+
+
+def test_profile_plots(default_case, default_slugs):
+    prof = slug_profiles(default_case, select_slugs(default_slugs))
+    fig = plots.slug_profile(prof, ["drag_force", "particle_force"])
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == "force per grain (N)" and ax.get_xlabel() == r"$\Delta x/d$"
+    assert len(ax.get_lines()) == 2
+    ax = plots.slug_profile(prof, "wall_stress").axes[0]
+    dotted = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
+    assert len(dotted) == 1  # the weight of the resting layer (H15)
+    assert np.allclose(dotted[0].get_ydata(), prof["resting_layer_stress"].values, equal_nan=True)
+    assert saved(ax.figure)
+
+
+def test_snapshot_plots(default_case):
+    series = cross_section_series(default_case)
+    fig = plots.cross_section(series.isel(snapshot_time=0))
+    assert fig.axes[0].get_xlabel() == "y (mm)"
+    assert saved(plots.cross_section_strip(series, t_range=(9.9, 10.1)))
+    heights = velocity_height_series(default_case)
+    ax = plots.velocity_height(time_average_by_height(heights)).axes[0]
+    assert ax.get_xlabel() == "granular velocity (m/s)" and ax.get_ylabel() == "height z (mm)"
+    assert saved(plots.velocity_height_image(heights))
+
+
+def test_radial_plot_uses_r_over_d():
+    profile = pytest.importorskip("xarray").Dataset(
+        {"porosity": ("r", [0.5, 0.6]), "porosity_sem": ("r", [0.01, 0.02])},
+        coords={"r": ("r", [0.000175, 0.000525])}, attrs={"particle_diameter": S.D_GRAIN})
+    ax = plots.radial_profile(profile).axes[0]
+    assert ax.get_xlabel() == "r/d"
+    assert np.allclose(ax.get_lines()[0].get_xdata(), [0.125, 0.375])
+
+
+def test_characteristic_curves_in_hpa_per_metre():
+    table = pd.DataFrame({
+        "gas.superficial_velocity": [0.5, 1.0, 0.5, 1.0], "feed.mass_flow_kg_h": [2.49, 2.49, 9.95, 9.95],
+        "pressure_drop": [3000.0, 1000.0, 6000.0, 2500.0], "pressure_drop_sem": [50.0] * 4,
+        "regime": ["bulk", "slug", "bulk", "slug"]})
+    fig = plots.characteristic_curves(table)
+    ax = fig.axes[0]
+    assert ax.get_ylabel() == "pressure drop (hPa/m)"
+    assert ax.get_xlabel() == "superficial gas velocity $v_s$ (m/s)"
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["2.49 kg/h", "9.95 kg/h"]
+    assert np.allclose(ax.get_lines()[0].get_ydata(), [30.0, 10.0])  # Pa/m -> hPa/m
+    viscosity = pd.DataFrame({"gas.viscosity": [4.5e-5, 8.5e-5], "pressure_drop": [1200.0, 900.0],
+                              "pressure_drop_sem": [10.0, 10.0]})
+    ax = plots.characteristic_curves(viscosity, x="gas.viscosity", group=None).axes[0]
+    assert ax.get_xlabel() == r"gas viscosity $\eta$ (cP)"
+    assert np.allclose(ax.get_lines()[0].get_xdata(), [0.045, 0.085])  # Pa s -> cP
+    assert isinstance(fig, Figure) and saved(fig)
+
+
+def test_plots_draw_into_a_given_axes(default_slugs):
+    fig = Figure()
+    ax = fig.add_subplot()
+    assert plots.slug_rate(slug_statistics(default_slugs), ax=ax) is fig

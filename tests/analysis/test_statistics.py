@@ -1,0 +1,89 @@
+"""Slug statistics against position: the numbers must match numpy on the same samples."""
+
+import numpy as np
+import pytest
+
+from analysis import describe, detect, passages, slug_statistics
+from analysis.statistics import crossings, default_positions
+
+from . import synthetic as S
+
+RNG = np.random.default_rng(7)
+LENGTHS = RNG.uniform(0.02, 0.08, size=40)  # m, one per slug
+
+
+@pytest.fixture(scope="module")
+def random_lengths():
+    """Slugs of random length at 0.3 m/s, one every 0.75 s (0.225 m apart: they never touch)."""
+    slugs = [S.moving(0.0, 0.3, length, t_ref=k * 0.75 - 2.0) for k, length in enumerate(LENGTHS)]
+    return detect(S.build(slugs, 22.5))
+
+
+def test_describe_matches_numpy():
+    v = RNG.normal(size=37)
+    v[3] = np.nan  # NaNs are dropped
+    d = describe(v)
+    f = v[np.isfinite(v)]
+    assert d["n"] == 36
+    assert d["mean"] == np.mean(f)
+    assert d["sem"] == np.std(f, ddof=1) / np.sqrt(36)
+    assert (d["q25"], d["median"], d["q75"]) == tuple(np.percentile(f, [25, 50, 75]))
+
+
+def test_statistics_match_numpy_on_the_passing_slugs(random_lengths):
+    positions = [0.2, 0.3]
+    stats = slug_statistics(random_lengths, positions).set_index("x")
+    sample = passages(random_lengths, positions)
+    for p in positions:
+        lengths = sample[sample["position"] == p]["length"].to_numpy()
+        row = stats.loc[p]
+        assert row["n_slugs"] == len(lengths)
+        assert row["length_mean"] == pytest.approx(np.mean(lengths), rel=1e-12)
+        assert row["length_sem"] == pytest.approx(np.std(lengths, ddof=1) / np.sqrt(len(lengths)),
+                                                  rel=1e-12)
+        q25, q75 = np.percentile(lengths, [25, 75])
+        assert (row["length_q25"], row["length_q75"]) == pytest.approx((q25, q75), rel=1e-12)
+
+
+def test_each_slug_passing_is_sampled_once_with_its_own_length(random_lengths):
+    sample = passages(random_lengths, [0.3])
+    assert sample["slug_id"].is_unique
+    # The slugs passing 0.3 m within the run: centre (front - L/2) reaches 0.3 m at
+    # t = k 0.75 - 2 + (0.3 + L/2) / 0.3, for 0 < t <= 22.49 s.
+    t_pass = np.arange(len(LENGTHS)) * 0.75 - 2.0 + (0.3 + LENGTHS / 2) / 0.3
+    expected = np.sort(LENGTHS[(t_pass > 0) & (t_pass <= 22.49)])
+    assert np.allclose(np.sort(sample["length"]), expected, atol=1e-9)  # exact lengths, see test_slugs
+
+
+def test_rate_counts_net_passages_per_second(random_lengths):
+    stats = slug_statistics(random_lengths, [0.3])
+    n_forward = len(passages(random_lengths, [0.3]))
+    assert stats["rate"].item() == pytest.approx(n_forward / 22.49, rel=1e-12)
+    assert stats.attrs["duration"] == pytest.approx(22.49)
+
+
+def test_a_slug_rocking_across_a_position_counts_once():
+    # centre of mass 0.26 - 0.01 cos(5 pi t) m: starts below 0.26 m, ends above it, and crosses
+    # it upward at t = 0.1, 0.5, 0.9 s and downward at 0.3, 0.7 s: one net passage
+    rocking = S.Slug(front=lambda t: 0.285 - 0.01 * np.cos(2 * np.pi * 2.5 * t),
+                     length=lambda t: 0.05 + 0 * t, speed=lambda t: 0 * t)
+    slugs = detect(S.build([rocking], 1.0))
+    cross = crossings(slugs, [0.26])
+    assert cross["direction"].tolist() == [1, -1, 1, -1, 1]
+    assert np.allclose(cross["time"], [0.1, 0.3, 0.5, 0.7, 0.9], atol=0.0101)
+    stats = slug_statistics(slugs, [0.26])
+    assert stats["rate"].item() == pytest.approx(1 / 0.99)
+    assert stats["n_slugs"].item() == 1
+
+
+def test_window_restricts_the_rate_and_the_samples(random_lengths):
+    late = slug_statistics(random_lengths, [0.3], t_start=10.0)
+    assert late.attrs["duration"] == pytest.approx(12.49)
+    sample = passages(random_lengths, [0.3], t_start=10.0)
+    assert (sample["time"] > 10.0).all()
+    assert late["n_slugs"].item() == len(sample)
+
+
+def test_default_positions_are_bin_centres():
+    p = default_positions(0.525)
+    assert len(p) == 30 and p[0] == pytest.approx(0.00875) and p[-1] == pytest.approx(0.51625)
