@@ -130,6 +130,12 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("gas.nodes_x", 150, "1", "Gas grid nodes along the tube.", kind=int, low=3, high=100000),
     Key("gas.nodes_y", 2, "1", "Gas grid nodes across the tube (y).", kind=int, low=1, high=64),
     Key("gas.nodes_z", 2, "1", "Gas grid nodes across the tube (z).", kind=int, low=1, high=64),
+    Key("gas.theta", 1.0, "1",
+        "Implicitness of the gas time scheme (1 = backward Euler, 0.5 = Crank-Nicolson); below 1 the "
+        "stiff dilute-cell modes flip sign every step (docs/gas.md).", low=0.5, high=1.0),
+    Key("numerics.gas_interval", 1, "1",
+        "Grain steps per gas update (the drag is held in between); 1 = every step.", kind=int,
+        low=1, high=10000),
     Key("numerics.time_step_fraction", 0.05, "1",
         "Time step as a fraction of the grain-grain contact time t_c (rounded down to divide "
         "output.interval); refused above the stable limit.",

@@ -9,6 +9,8 @@ import numpy as np
 from .case import Case
 from .contact import ContactModel
 from .feed import Feed
+from .gas import GasField
+from .kernels import gas as gas_kernels
 from .kernels import params as P
 from .kernels import slices as S
 from .kernels.stepper import advance, compute_forces, finish_step, rebuild
@@ -21,16 +23,13 @@ class SimulationError(RuntimeError):
 
 
 class Simulation:
-    """One case in a tube: grains (and later gas), advanced in time.
+    """One case in a tube: grains and gas, advanced in time.
 
     Arrays returned by `positions`, `velocities` and `angular_velocities` are (n, 3) copies in SI
     units, ordered by grain id (the order of insertion), holding only grains inside the tube.
     """
 
     def __init__(self, case: Case):
-        if case["gas.enabled"]:
-            raise NotImplementedError("gas.enabled = true: the gas field is not implemented yet "
-                                      "(set gas.enabled=false for grain-only runs)")
         self.case = case
         self.model = ContactModel.from_case(case)
         self.feed = Feed(case, self.model.mass, case["run.seed"])
@@ -38,6 +37,7 @@ class Simulation:
         self._steps = 0
         self._next_id = 0
         self._setup_params()
+        self.gas = self._make_gas()
         self._allocate(self._initial_capacity())
         self._n = np.zeros(1, dtype=np.int64)
         self._counters = np.zeros(P.NCOUNTERS, dtype=np.int64)
@@ -68,8 +68,26 @@ class Simulation:
         p[P.CELL_DYZ] = c["tube.diameter"] / nyz
         # Rotation only matters through tangential forces; frictionless grains never spin up.
         p[P.ROTATION] = 1.0 if (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0 else 0.0
+        p[P.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
+        p[P.GAS_INTERVAL] = c["numerics.gas_interval"]
+        p[P.GAS_THETA] = c["gas.theta"]
+        p[P.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if self.feed.enabled else 0.0
         self._p = p
         self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
+
+    def _make_gas(self) -> GasField:
+        """The gas field (a 3-node dummy when the gas is off, so the kernels keep one signature)."""
+        c = self.case
+        nodes = (c["gas.nodes_x"], c["gas.nodes_y"], c["gas.nodes_z"]) if c["gas.enabled"] else (3, 1, 1)
+        return GasField(length=c["tube.length"], diameter=c["tube.diameter"],
+                        particle_diameter=c["particles.diameter"], viscosity=c["gas.viscosity"],
+                        pressure=c["gas.pressure"], superficial_velocity=c["gas.superficial_velocity"],
+                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[P.FEED_VOLUME_RATE])
+
+    def _gas_arrays(self) -> tuple:
+        gas = self.gas
+        return (gas.P, gas.dep, gas.phi, gas.kappa, gas.u, gas.src, gas.nodal, gas.wmat, gas.wvec,
+                gas.area, gas.ay, gas.az, gas.g)
 
     def _initial_capacity(self) -> int:
         c = self.case
@@ -85,7 +103,7 @@ class Simulation:
         for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
                                    ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
                                    ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
-                                   ("_wall_normal", cap, float),
+                                   ("_wall_normal", cap, float), ("_drag", (cap, 3), float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
                                    ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
                                    ("_cell_of", cap, np.int64), ("_order", cap, np.int64),
@@ -166,7 +184,8 @@ class Simulation:
     def _rebuild(self) -> None:
         """Sort, drop outflow and rebuild the neighbour list, growing the list until it fits."""
         while True:
-            self._n[0] = rebuild(self._pos, self._vel, self._omg, self._gid, self._kin, int(self._n[0]),
+            self._n[0] = rebuild(self._pos, self._vel, self._omg, self._drag, self._gid, self._kin,
+                                 int(self._n[0]),
                                  self._pos_ref, self._p, self._shape, self._cell_start, self._cell_of,
                                  self._order, self._tmp3, self._tmpi, self._nbr_start, self._nbr,
                                  self._counters)
@@ -188,15 +207,15 @@ class Simulation:
             self._refill_feed(feed_travel)
             if self._dirty:
                 self._prepare()
-            taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._torque,
-                            self._wall_normal, self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
+            taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._drag,
+                            self._torque, self._wall_normal, self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
                             self._cell_of, self._order, self._tmp3, self._tmpi, self._nbr_start,
-                            self._nbr, self._counters, self._diag)
+                            self._nbr, self._counters, self._diag, self._gas_arrays())
             if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
-                finish_step(self._pos, self._vel, self._omg, self._force, self._torque, self._wall_normal,
-                            self._kin,
+                finish_step(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
+                            self._wall_normal, self._kin,
                             int(self._n[0]), self._nbr_start, self._nbr, self._p, self._counters,
                             self._diag)
                 taken += 1
@@ -309,16 +328,26 @@ class Simulation:
 
     @property
     def pressure_drop(self) -> float:
-        """Gas pressure at the inlet minus at the outlet, Pa (0 while the gas is off)."""
-        return 0.0
+        """Gas pressure at the inlet face minus at the outlet face, Pa (0 while the gas is off)."""
+        if not self.case["gas.enabled"]:
+            return 0.0
+        gas = self.gas
+        paused = self._diag[1] > self._p[P.FEED_MAX_OVERLAP]
+        rate = 0.0 if paused else self._p[P.FEED_VOLUME_RATE]
+        return float(gas_kernels.pressure_drop(gas.P, gas.kappa, gas.u, gas.area, gas.g, rate))
 
     def gas_pressure_slices(self, width: float) -> np.ndarray:
-        """Gas pressure P' averaged over slices of `width` (m), Pa (zeros while the gas is off)."""
-        return np.zeros(int(round(self.case["tube.length"] / width)))
+        """Gas pressure P' (cross-section mean) at the slice centres of `width` (m), Pa."""
+        nslices = int(round(self.case["tube.length"] / width))
+        if not self.case["gas.enabled"]:
+            return np.zeros(nslices)
+        gas = self.gas
+        mean = (gas.P * gas.area).sum(axis=(1, 2)) / gas.area.sum()
+        return np.interp((np.arange(nslices) + 0.5) * width, gas.x, mean)
 
     def _drag_forces(self) -> np.ndarray:
-        """Per-grain gas drag force (capacity x 3), N (zero while the gas is off)."""
-        return np.zeros_like(self._force)
+        """Per-grain gas drag force (capacity x 3), N, as applied in the last step."""
+        return self._drag
 
     @property
     def kinetic_energy(self) -> float:

@@ -24,7 +24,7 @@ def _cell_index(x, y, z, p, shape):
 
 
 @nb.njit(cache=True)
-def sort_and_compact(pos, vel, omg, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                      counters):
     """Drop dynamic grains past x = L (counted in counters[REMOVED]), sort the rest by cell.
 
@@ -55,7 +55,7 @@ def sort_and_compact(pos, vel, omg, gid, kin, n, p, shape, cell_start, cell_of, 
             order[fill[c]] = i
             fill[c] += 1
     m = n - n_removed
-    for arr in (pos, vel, omg):
+    for arr in (pos, vel, omg, drag):  # drag is held between gas updates: it moves with its grain
         for k in range(m):
             o = order[k]
             tmp3[k, 0] = arr[o, 0]

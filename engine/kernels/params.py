@@ -24,7 +24,11 @@ CELL_X0 = 18         # lower x edge of the cell grid, m
 CELL_DX = 19         # cell size along x, m
 CELL_DYZ = 20        # cell size across, m
 ROTATION = 21        # 1.0: integrate rotation; 0.0: frictionless, rotation skipped
-NPARAMS = 22
+GAS_ON = 22          # 1.0: couple the gas every GAS_INTERVAL steps
+GAS_INTERVAL = 23    # grain steps per gas update
+GAS_THETA = 24       # theta of the gas time scheme
+FEED_VOLUME_RATE = 25  # m_dot / rho_s, m3/s: gas displaced by the entering grains
+NPARAMS = 26
 
 # Integer cell-grid shape vector
 NCX = 0

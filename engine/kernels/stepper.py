@@ -9,6 +9,7 @@ import numba as nb
 
 from . import params as P
 from .contacts import FASTMATH, pair_forces, wall_forces
+from .gas import couple
 from .neighbors import build_neighbor_list, sort_and_compact
 
 
@@ -22,13 +23,13 @@ def compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall
 
 
 @nb.njit(cache=True)
-def rebuild(pos, vel, omg, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+def rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3, tmpi,
             nbr_start, nbr, counters):
     """Drop grains past the outlet, sort by cell, rebuild the neighbour list. Returns the new n.
 
     On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbr and retries).
     """
-    n = sort_and_compact(pos, vel, omg, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+    n = sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
     pos_ref[:n] = pos[:n]
     npairs = build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr)
@@ -38,8 +39,8 @@ def rebuild(pos, vel, omg, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, 
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _kick(vel, omg, force, torque, kin, n, p, half_dt):
-    """Half-step velocity update of the dynamic grains (gravity included)."""
+def _kick(vel, omg, force, drag, torque, kin, n, p, half_dt):
+    """Half-step velocity update of the dynamic grains (contacts, gas drag and gravity)."""
     a = half_dt / p[P.MASS]
     b = half_dt / p[P.INERTIA]
     gx = half_dt * p[P.GX]
@@ -49,9 +50,9 @@ def _kick(vel, omg, force, torque, kin, n, p, half_dt):
     for i in range(n):
         if kin[i]:
             continue
-        vel[i, 0] += a * force[i, 0] + gx
-        vel[i, 1] += a * force[i, 1] + gy
-        vel[i, 2] += a * force[i, 2] + gz
+        vel[i, 0] += a * (force[i, 0] + drag[i, 0]) + gx
+        vel[i, 1] += a * (force[i, 1] + drag[i, 1]) + gy
+        vel[i, 2] += a * (force[i, 2] + drag[i, 2]) + gz
         if rotate:
             omg[i, 0] += b * torque[i, 0]
             omg[i, 1] += b * torque[i, 1]
@@ -102,18 +103,29 @@ def _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters):
 
 
 @nb.njit(cache=True)
-def advance(nsteps, state_n, pos, vel, omg, force, torque, wall_normal, gid, kin, pos_ref, p, shape,
-            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag):
+def advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
+            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag, gas):
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
-    diag[1] (max feed overlap of the last force evaluation) pauses the feed piston.
+    diag[1] (max feed overlap of the last force evaluation) pauses the feed piston. `gas` is the
+    tuple of gas arrays (P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g).
     """
+    return _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref,
+                    p, shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
+                    gas[0], gas[1], gas[2], gas[3], gas[4], gas[5], gas[6], gas[7], gas[8], gas[9],
+                    gas[10], gas[11], gas[12])
+
+
+@nb.njit(cache=True)
+def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
+             cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
+             P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g):
     n = state_n[0]
     half_dt = 0.5 * p[P.DT]
     taken = 0
     for _ in range(nsteps):
-        _kick(vel, omg, force, torque, kin, n, p, half_dt)
+        _kick(vel, omg, force, drag, torque, kin, n, p, half_dt)
         feed_moves = diag[1] <= p[P.FEED_MAX_OVERLAP]
         if not feed_moves:
             counters[P.STALLED_STEPS] += 1
@@ -121,19 +133,23 @@ def advance(nsteps, state_n, pos, vel, omg, force, torque, wall_normal, gid, kin
         if counters[P.STATUS] != P.OK:
             break
         if need:
-            n = rebuild(pos, vel, omg, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3,
+            n = rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3,
                         tmpi, nbr_start, nbr, counters)
             if counters[P.OVERFLOW]:
                 break
-        finish_step(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
+        if p[P.GAS_ON] > 0.0 and counters[P.STEPS] % int(p[P.GAS_INTERVAL]) == 0:
+            feed_rate = p[P.FEED_VOLUME_RATE] if feed_moves else 0.0
+            couple(pos, vel, n, P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
+                   p[P.DT] * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], feed_rate, drag, False)
+        finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
         taken += 1
     state_n[0] = n
     return taken
 
 
 @nb.njit(cache=True)
-def finish_step(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
+def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
     """Second half of a step: forces at the new positions, then the closing half kick."""
     compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
-    _kick(vel, omg, force, torque, kin, n, p, 0.5 * p[P.DT])
+    _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])
     counters[P.STEPS] += 1

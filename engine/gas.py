@@ -1,0 +1,324 @@
+"""Gas pressure field: grid geometry and a thin Python wrapper around engine.kernels.gas (SI units).
+
+`GasField` builds the cell-centred grid, the node volumes of the cut cells and every work array,
+then offers deposit / step / drag_forces / pressure_drop for tests and standalone use.  A numba
+time loop calls the kernels directly with the arrays held here (see docs/gas.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .kernels import gas as K
+
+QUADRATURE_POINTS = 200_001  # angular midpoint points of the cross-section quadrature
+
+
+def _tent_antiderivative(z, m, n, lo, h):
+    """Integral from lo to z (m) of the clamped tent weight of node m out of n (spacing h)."""
+    if n == 1:
+        return z - lo
+    s = (z - (lo + (m + 0.5) * h)) / h
+    rising = np.where(s <= -1.0, 0.0, 0.5 * (s + 1.0) ** 2)
+    falling = 1.0 - 0.5 * (1.0 - np.minimum(s, 1.0)) ** 2
+    # the end nodes carry weight 1 between themselves and the tube edge
+    below = s + 0.5 if m == 0 else rising
+    above = s + 0.5 if m == n - 1 else falling
+    return h * np.where(s <= 0.0, below, above)
+
+
+def cross_section_areas(radius, ny, nz, points=QUADRATURE_POINTS):
+    """Tent-weighted tube cross-section of each node line, A_km = int w_k(y) w_m(z) chi_disk (m2).
+
+    Exact in z; in y by the midpoint rule in the angle (y = R sin t), whose integrand is smooth but
+    for kinks at the nodes.  Rescaled so that sum A_km = pi R^2 (a round-off-level correction).
+    """
+    hy = 2.0 * radius / ny
+    hz = 2.0 * radius / nz
+    t = (np.arange(points) + 0.5) / points * math.pi - 0.5 * math.pi
+    y = radius * np.sin(t)
+    c = radius * np.cos(t)
+    jac = radius * np.cos(t) * (math.pi / points)
+    area = np.empty((ny, nz))
+    for k in range(ny):
+        wk = _tent_weight(y, k, ny, -radius, hy)
+        for m in range(nz):
+            span = (_tent_antiderivative(c, m, nz, -radius, hz)
+                    - _tent_antiderivative(-c, m, nz, -radius, hz))
+            area[k, m] = np.sum(wk * span * jac)
+    area *= math.pi * radius**2 / area.sum()
+    return area
+
+
+def _tent_weight(y, k, n, lo, h):
+    """Clamped tent weight (eq. 7) of node k out of n at coordinates y (m)."""
+    if n == 1:
+        return np.ones_like(y)
+    s = (y - (lo + (k + 0.5) * h)) / h
+    w = np.maximum(1.0 - np.abs(s), 0.0)
+    if k == 0:
+        w = np.where(s <= 0.0, 1.0, w)
+    if k == n - 1:
+        w = np.where(s >= 0.0, 1.0, w)
+    return w
+
+
+def _chord(face, lo_cell, hi_cell, radius):
+    """Length (m) of the segment [lo_cell, hi_cell] inside the disk along the line at `face` (m)."""
+    c = math.sqrt(max(radius**2 - face**2, 0.0))
+    return max(0.0, min(hi_cell, c) - max(lo_cell, -c))
+
+
+def face_areas(length, radius, nx, ny, nz):
+    """Areas (m2) of the transverse faces inside the tube: ay (ny-1, nz) and az (ny, nz-1)."""
+    hx = length / nx
+    hy = 2.0 * radius / ny
+    hz = 2.0 * radius / nz
+    ay = np.zeros((max(ny - 1, 0), nz))
+    az = np.zeros((ny, max(nz - 1, 0)))
+    for k in range(ny - 1):
+        for m in range(nz):
+            z_lo = -radius + m * hz
+            ay[k, m] = hx * _chord(-radius + (k + 1) * hy, z_lo, z_lo + hz, radius)
+    for k in range(ny):
+        for m in range(nz - 1):
+            y_lo = -radius + k * hy
+            az[k, m] = hx * _chord(-radius + (m + 1) * hz, y_lo, y_lo + hy, radius)
+    return ay, az
+
+
+def build_geometry(length, radius, nodes):
+    """(area, ay, az): node-line cross-sections and transverse face areas of an (nx, ny, nz) grid."""
+    nx, ny, nz = nodes
+    return cross_section_areas(radius, ny, nz), *face_areas(length, radius, nx, ny, nz)
+
+
+class GasField:
+    """Relative gas pressure P' (Pa) on a cell-centred grid in the tube, with its coupling to grains.
+
+    Arguments (SI): length L, diameter D, particle_diameter d, viscosity eta (Pa s), pressure P0
+    (Pa), superficial_velocity v_s (m/s), nodes (nx, ny, nz), theta (1 = backward Euler, 0.5 =
+    Crank-Nicolson), phi_min (porosity floor), kappa_max (permeability cap, m2; default D^2/32),
+    outlet ("open": P' = 0 on the outlet face; "flux": prescribed outflow v_s A as in the papers),
+    particle_volume (m3; default pi d^3/6), feed_volume_rate (m3/s, m_dot/rho_s of the feed).
+    """
+
+    def __init__(self, length=0.525, diameter=7e-3, particle_diameter=1.4e-3, viscosity=6.73e-5,
+                 pressure=101325.0, superficial_velocity=1.0, nodes=(150, 2, 2), theta=1.0,
+                 phi_min=0.2, kappa_max=None, outlet="open", particle_volume=None,
+                 feed_volume_rate=0.0):
+        nx, ny, nz = (int(v) for v in nodes)
+        _check(nx >= 2 and ny >= 1 and nz >= 1, "nodes", nodes, "nx >= 2, ny >= 1, nz >= 1")
+        for name, value in (("length", length), ("diameter", diameter),
+                            ("particle_diameter", particle_diameter), ("viscosity", viscosity),
+                            ("pressure", pressure)):
+            _check(value > 0.0, name, value, "> 0")
+        _check(superficial_velocity >= 0.0, "superficial_velocity", superficial_velocity, ">= 0")
+        _check(0.5 <= theta <= 1.0, "theta", theta, "0.5 <= theta <= 1 (unconditionally stable)")
+        _check(0.0 < phi_min < 1.0, "phi_min", phi_min, "0 < phi_min < 1")
+        _check(outlet in ("open", "flux"), "outlet", outlet, '"open" or "flux"')
+        radius = 0.5 * diameter
+        if kappa_max is None:
+            kappa_max = diameter**2 / 32.0
+        _check(kappa_max > 0.0, "kappa_max", kappa_max, "> 0")
+        if particle_volume is None:
+            particle_volume = math.pi * particle_diameter**3 / 6.0
+        self.nodes = (nx, ny, nz)
+        self.theta = float(theta)
+        self._feed_volume_rate = float(feed_volume_rate)
+        g = np.zeros(K.NG)
+        g[K.G_LENGTH] = length
+        g[K.G_RADIUS] = radius
+        g[K.G_HX] = length / nx
+        g[K.G_HY] = diameter / ny
+        g[K.G_HZ] = diameter / nz
+        g[K.G_VP] = particle_volume
+        g[K.G_P0] = pressure
+        g[K.G_ETA] = viscosity
+        g[K.G_DP] = particle_diameter
+        g[K.G_KAPPA_MAX] = kappa_max
+        g[K.G_PHI_MIN] = phi_min
+        g[K.G_VS] = superficial_velocity
+        g[K.G_AREA] = math.pi * radius**2
+        g[K.G_OUTLET_OPEN] = 1.0 if outlet == "open" else 0.0
+        self.g = g
+        self.area, self.ay, self.az = build_geometry(length, radius, self.nodes)
+        g[K.G_SOLID_MIN] = particle_volume / (8.0 * g[K.G_HX] * self.area.max())
+        shape = self.nodes
+        self.P = np.zeros(shape)
+        self.dep = np.zeros(shape + (4,))      # solid volume, solid volume x velocity
+        self.phi = np.ones(shape)
+        self.kappa = np.full(shape, kappa_max)
+        self.u = np.zeros(shape + (3,))
+        self.src = np.zeros(shape)
+        self.nodal = np.zeros(shape + (4,))    # phi, grad P'
+        blocks = ny * nz
+        self.wmat = np.zeros((nx, blocks, blocks))
+        self.wvec = np.zeros((3, nx, blocks))
+        self.work = np.zeros((10, max(shape)))  # only for the split comparison scheme
+        self.update()
+
+    # geometry -------------------------------------------------------------------------------
+    @property
+    def x(self):
+        """Node positions along the tube (m)."""
+        nx = self.nodes[0]
+        return (np.arange(nx) + 0.5) * self.g[K.G_HX]
+
+    @property
+    def y(self):
+        """Node positions across, y (m)."""
+        return -self.g[K.G_RADIUS] + (np.arange(self.nodes[1]) + 0.5) * self.g[K.G_HY]
+
+    @property
+    def z(self):
+        """Node positions across, z (m)."""
+        return -self.g[K.G_RADIUS] + (np.arange(self.nodes[2]) + 0.5) * self.g[K.G_HZ]
+
+    @property
+    def node_volume(self):
+        """Tube volume V_j = int w_j chi_tube dV of each node (m3), shape (nx, ny, nz)."""
+        return np.broadcast_to(self.g[K.G_HX] * self.area, self.nodes).copy()
+
+    # coupling ---------------------------------------------------------------------------------
+    @property
+    def feed_volume_rate(self):
+        """Volume rate m_dot / rho_s of grains entering through the inlet (m3/s)."""
+        return self._feed_volume_rate
+
+    @feed_volume_rate.setter
+    def feed_volume_rate(self, value):
+        self._feed_volume_rate = float(value)
+        self.update()
+
+    def update(self):
+        """Recompute phi, kappa, u and the sources from the deposit `dep`."""
+        K.update_fields(self.dep, self.area, self.g, self.phi, self.kappa, self.u)
+        K.volume_sources(self.u, self.area, self.ay, self.az, self.g, self.feed_volume_rate, self.src)
+
+    def deposit(self, pos, vel=None, n=None):
+        """Deposit grains (positions, velocities (n, 3), m and m/s) and refresh phi, kappa, u."""
+        pos = np.ascontiguousarray(pos, dtype=float)
+        n = len(pos) if n is None else n
+        vel = np.zeros_like(pos) if vel is None else np.ascontiguousarray(vel, dtype=float)
+        K.deposit(pos, vel, n, self.g, self.dep)
+        self.update()
+
+    def set_solid_fraction(self, solid_fraction, velocity=(0.0, 0.0, 0.0)):
+        """Impose a solid-fraction field 1 - phi (scalar or (nx, ny, nz)) moving at `velocity` (m/s)."""
+        solid = np.asarray(solid_fraction) * self.node_volume
+        self.dep[..., 0] = solid
+        self.dep[..., 1:] = solid[..., None] * np.asarray(velocity, dtype=float)
+        self.update()
+
+    def step(self, dt, substeps=1, split=False):
+        """Advance P' by dt (s) in `substeps` equal theta-steps with the current phi, kappa, u.
+
+        split=True uses the papers' dimension-split scheme (for comparison only).
+        """
+        h = dt / substeps
+        args = (self.P, self.phi, self.kappa, self.src, self.area, self.ay, self.az, self.g, h,
+                self.theta)
+        for _ in range(substeps):
+            if split:
+                K.gas_step_split(*args, self.work)
+            else:
+                K.gas_step(*args, self.wmat, self.wvec)
+
+    def pressure_gradient(self):
+        """Node pressure gradient (Pa/m), shape (nx, ny, nz, 3)."""
+        K.pressure_gradient(self.P, self.phi, self.kappa, self.u, self.g, self.feed_volume_rate,
+                            self.nodal)
+        return self.nodal[..., 1:]
+
+    def drag_forces(self, pos, n=None):
+        """Drag force on each grain (N), shape (n, 3), from the current P' and phi."""
+        pos = np.ascontiguousarray(pos, dtype=float)
+        n = len(pos) if n is None else n
+        out = np.zeros((n, 3))
+        self.pressure_gradient()
+        K.drag_forces(pos, n, self.nodal, self.g, out, False)
+        return out
+
+    def pressure_drop(self):
+        """Inlet-face minus outlet-face pressure (Pa)."""
+        return K.pressure_drop(self.P, self.kappa, self.u, self.area, self.g, self.feed_volume_rate)
+
+    def gas_content(self):
+        """sum_j phi_j V_j P'_j (Pa m3), conserved by a step without boundary or grain fluxes."""
+        return K.gas_content(self.P, self.phi, self.area, self.g)
+
+    def diffusion_number(self, dt):
+        """Largest D dt / h^2 over the nodes; D = P0 kappa / (eta phi) (eq. 5), h the finest spacing."""
+        h = min(self.g[K.G_HX], self.g[K.G_HY], self.g[K.G_HZ])
+        d = self.g[K.G_P0] * self.kappa / (self.g[K.G_ETA] * self.phi)
+        return float(d.max() * dt / h**2)
+
+
+def _check(ok, name, value, allowed):
+    if not ok:
+        raise ValueError(f"gas: {name} = {value!r} is out of range (allowed: {allowed})")
+
+
+def benchmark(repeats=2000, grains=3200, seed=0):
+    """Median cost (us) of the gas kernels on the default grid, `grains` grains in the first quarter.
+
+    Each kernel is timed in batches of `repeats` calls from inside a numba loop (no Python
+    dispatch), median over 9 batches.
+    """
+    import numba as nb
+
+    rng = np.random.default_rng(seed)
+    f = GasField()
+    r = f.g[K.G_RADIUS] - 0.7e-3
+    rad = r * np.sqrt(rng.random(grains))
+    ang = 2.0 * math.pi * rng.random(grains)
+    pos = np.column_stack([rng.random(grains) * 0.25 * f.g[K.G_LENGTH], rad * np.cos(ang),
+                           rad * np.sin(ang)])
+    vel = rng.normal(0.0, 0.05, (grains, 3))
+    force = np.zeros((grains, 3))
+    f.deposit(pos, vel)
+
+    @nb.njit
+    def run(which, reps, theta, pos, vel, force, P, dep, phi, kappa, u, src, nodal, wmat, wvec,
+            work, area, ay, az, g):
+        for _ in range(reps):
+            if which == 0:
+                K.gas_step(P, phi, kappa, src, area, ay, az, g, 1e-5, theta, wmat, wvec)
+            elif which == 1:
+                K.gas_step_split(P, phi, kappa, src, area, ay, az, g, 1e-5, theta, work)
+            elif which == 2:
+                K.deposit(pos, vel, len(pos), g, dep)
+            elif which == 3:
+                K.update_fields(dep, area, g, phi, kappa, u)
+                K.volume_sources(u, area, ay, az, g, 0.0, src)
+                K.pressure_gradient(P, phi, kappa, u, g, 0.0, nodal)
+            elif which == 4:
+                K.drag_forces(pos, len(pos), nodal, g, force, False)
+            else:
+                K.couple(pos, vel, len(pos), P, dep, phi, kappa, u, src, nodal, wmat, wvec, area,
+                         ay, az, g, 1e-5, 1, theta, 0.0, force, False)
+
+    names = ["gas_step", "gas_step_split", "deposit", "fields_sources_gradient", "drag_forces",
+             "couple"]
+    arrays = (pos, vel, force, f.P, f.dep, f.phi, f.kappa, f.u, f.src, f.nodal, f.wmat, f.wvec,
+              f.work, f.area, f.ay, f.az, f.g)
+    out = {}
+    for which, name in enumerate(names):
+        run(which, 1, f.theta, *arrays)
+        t = []
+        for _ in range(9):
+            t0 = time.perf_counter()
+            run(which, repeats, f.theta, *arrays)
+            t.append((time.perf_counter() - t0) / repeats * 1e6)
+        out[name + "_us"] = float(np.median(t))
+    out["grains"] = grains
+    return out
+
+
+if __name__ == "__main__":
+    for key, value in benchmark().items():
+        print(f"{key:32s} {value:10.2f}")
