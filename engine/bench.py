@@ -133,6 +133,46 @@ def lammps_parameters(sim: Simulation) -> dict:
             "gravity": sim.case["physics.gravity"], "n_grains": sim.n_particles}
 
 
+def gas_cost_split(steps: int, repeats: int) -> dict:
+    """Cost per step of grains, coupling (deposit, fields, gradient, drag) and the gas solve, s.
+
+    The standard packing with the gas on (v_s = 1 m/s, gas updated every step): the whole step is
+    timed through Simulation.advance, the coupling and the solve by calling their kernels alone.
+    """
+    from .kernels import gas as K
+
+    sim = Simulation(standard_case("gas.enabled=true", "numerics.gas_interval=1"))
+    sim.add_particles(standard_packing(sim.case))
+    sim.advance(0.001)
+    total = statistics.median(
+        _timed(lambda: sim.advance(steps * sim.dt)) / steps for _ in range(repeats))
+    gas, n, dt = sim.gas, int(sim._n[0]), sim.dt
+    arrays = (gas.P, gas.dep, gas.phi, gas.kappa, gas.u, gas.src, gas.nodal, gas.wmat, gas.wvec,
+              gas.area, gas.ay, gas.az, gas.g)
+    drag = np.zeros_like(sim._drag)
+
+    def couple_steps():
+        for _ in range(steps):
+            K.couple(sim._pos, sim._vel, n, *arrays, dt, 1, 1.0, 0.0, drag, False)
+
+    def solve_steps():
+        for _ in range(steps):
+            K.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g, dt, 1.0,
+                       gas.wmat, gas.wvec)
+
+    couple = statistics.median(_timed(couple_steps) / steps for _ in range(repeats))
+    solve = statistics.median(_timed(solve_steps) / steps for _ in range(repeats))
+    return {"grains_s_per_step": total - couple, "coupling_s_per_step": couple - solve,
+            "gas_solve_s_per_step": solve, "total_s_per_step": total, "grains": sim.n_particles,
+            "wall_s_per_simulated_s": total / dt}
+
+
+def _timed(call) -> float:
+    start = time.perf_counter()
+    call()
+    return time.perf_counter() - start
+
+
 def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1) -> dict:
     """Build, settle and time the standard case; returns the numbers it prints."""
     import numba
@@ -155,10 +195,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5, help="repeats; the median is reported")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time measurement")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--gas", action="store_true",
+                        help="also time the same packing with the gas on and split the cost per step")
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
     result = run(args.steps, args.repeats, not args.no_compile)
+    if args.gas:
+        result["gas"] = gas_cost_split(args.steps, args.repeats)
     if args.write_lammps:
         sim = settled_simulation()
         out = Path(args.write_lammps)
@@ -173,6 +217,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"particle-steps per s   {result['particle_steps_per_s_median']:.3e} "
               f"(median of {args.repeats} x {args.steps} steps, one thread)")
         print(f"wall s per simulated s {result['wall_s_per_simulated_s']:.1f} (dt = {result['time_step_s']:.3g} s)")
+        if "gas" in result:
+            g = result["gas"]
+            print(f"with gas, per step     grains {g['grains_s_per_step'] * 1e6:.0f} us, coupling "
+                  f"{g['coupling_s_per_step'] * 1e6:.0f} us, gas solve {g['gas_solve_s_per_step'] * 1e6:.0f} us "
+                  f"-> {g['wall_s_per_simulated_s']:.0f} wall s per simulated s")
         if "compile_s" in result:
             print(f"compile + first step   {result['compile_s']['cold']:.1f} s cold cache, "
                   f"{result['compile_s']['warm']:.1f} s warm cache")

@@ -134,3 +134,23 @@ def test_batch_means_error_matches_the_standard_error_of_independent_batches():
     mean, error = batch_means_error(values, batches=10)
     assert mean == pytest.approx(4.5)
     assert error == pytest.approx(np.std(np.arange(10.0), ddof=1) / math.sqrt(10))
+
+
+def test_until_steady_stops_a_short_real_case_and_records_the_window(tmp_path):
+    # A 7 cm horizontal tube with the gas on fills in about a second; a loose tolerance keeps the
+    # test short while exercising the whole stopping rule on real, fluctuating data.
+    case = Case.from_yaml(CASE, [
+        "tube.length=0.07", "gas.nodes_x=20", "numerics.gas_interval=10", "run.duration=6",
+        "run.until_steady=true", "run.steady_settle=0.2", "run.steady_min_window=0.5",
+        "run.steady_rel_error=0.1"])
+    out = run_case(case, tmp_path / "steady.nc")
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["stop_reason"] == "steady"
+        start, end = ds.attrs["steady_start"], ds.attrs["steady_end"]
+        first_out = float(ds.time[np.argmax(ds.mass_out.values > 0)])
+        assert start == pytest.approx(first_out + 0.2)
+        assert end == pytest.approx(float(ds.time[-1])) and end - start >= 0.5
+        assert end < 6.0
+        window = ds.pressure_drop.sel(time=slice(start, end)).values
+        mean, error = batch_means_error(window)
+        assert error < 0.1 * mean
