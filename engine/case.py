@@ -133,7 +133,7 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("gas.theta", 1.0, "1",
         "Implicitness of the gas time scheme (1 = backward Euler, 0.5 = Crank-Nicolson); below 1 the "
         "stiff dilute-cell modes flip sign every step (docs/gas.md).", low=0.5, high=1.0),
-    Key("numerics.gas_interval", 1, "1",
+    Key("numerics.gas_interval", 10, "1",
         "Grain steps per gas update (the drag is held in between); 1 = every step.", kind=int,
         low=1, high=10000),
     Key("numerics.time_step_fraction", 0.05, "1",
