@@ -1,9 +1,56 @@
-# plugsim workflow entry point: loads config/config.yaml, includes workflow/rules/*.smk.
-# The paper workflow is not built yet (it lands with the workflow issue); until then the default
-# target only says so.
+# plugsim workflow: reproduces every reproducible figure of Strauss, McNamara & Herrmann's horizontal
+# (H) and vertical (V) plug-conveying papers, the validation table, and any sweep declared in config.
+#
+#   snakemake -j2                               # the papers (config/config.yaml)
+#   snakemake -j2 --configfile config/ci.yaml   # the reduced CI run, laid over config.yaml
+#   snakemake --report report.html              # HTML report of the figures, curves and validation
+#
+# Rules live in workflow/rules/ (one file per stage), thin scripts in workflow/scripts/; see
+# docs/workflow.md.
+
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, "workflow/schemas/config.schema.yaml")
+
+
+report: "workflow/report/workflow.rst"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/detect.smk"
+include: "workflow/rules/profiles.smk"
+include: "workflow/rules/curves.smk"
+include: "workflow/rules/figures.smk"
+include: "workflow/rules/validation.smk"
+include: "workflow/rules/benchmarks.smk"
+
 
 rule all:
+    """Every figure, every sweep's curve, the validation table and the engine benchmark."""
     default_target: True
-    run:
-        print("plugsim: the paper-reproduction workflow is not yet available; "
-              "the engine can be used from Python (see README.md).")
+    input:
+        [figure_files(fig) for fig in FIGURES],
+        [f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters") for ext in ("csv", "png")],
+        [summary_json(s, p) for s, p in all_points()],
+        "results/validation/validation.csv",
+        "results/validation/validation.md",
+        "results/benchmarks/engine.json",
+
+
+rule figures:
+    """Only the paper figures."""
+    input:
+        [figure_files(fig) for fig in FIGURES],
+
+
+rule curves:
+    """Only the sweep tables and their plots."""
+    input:
+        [f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters") for ext in ("csv", "png")],

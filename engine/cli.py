@@ -52,9 +52,9 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _bench(args: argparse.Namespace) -> int:
+def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     from . import bench
-    return bench.main(args.rest)
+    return bench.main(rest)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -76,9 +76,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
     p.set_defaults(func=_run)
     p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
-    p.add_argument("rest", nargs=argparse.REMAINDER)
     p.set_defaults(func=_bench)
-    args = parser.parse_args(argv)
+    # `bench` options belong to engine.bench's own parser (REMAINDER would drop leading options)
+    args, rest = parser.parse_known_args(argv)
+    if args.command == "bench":
+        return _bench(args, rest)
+    if rest:
+        parser.error(f"unrecognized arguments: {' '.join(rest)}")
     try:
         return args.func(args)
     except CaseError as err:

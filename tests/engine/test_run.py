@@ -169,3 +169,11 @@ def test_numerical_failure_exits_1_with_one_line_and_no_file(tmp_path):
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("plugsim: run failed: a grain left the tube")
     assert not list(tmp_path.iterdir())
+
+
+def test_bench_options_reach_the_benchmark():
+    """`plugsim bench --json --steps ...`: leading options go to engine.bench, not argparse's REMAINDER."""
+    res = plugsim("bench", "--help")
+    assert res.returncode == 0 and "--steps" in res.stdout
+    res = plugsim("bench", "--no-such-option")
+    assert res.returncode == 2 and "--no-such-option" in res.stderr

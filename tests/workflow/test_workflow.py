@@ -1,0 +1,157 @@
+"""The Snakemake workflow: dry runs of the paper configuration, a YAML-only sweep, early refusal of
+bad case keys, lint, and (marker `workflow`) the whole reduced CI workflow.
+
+Snakemake is driven through its command line in a subprocess (its Python API is for its own
+developers), from the repository root or from a scratch copy of config/ and resources/.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+# Every reproducible figure of both papers: V1 (sketch of the set-up) and V2 (photographs of the
+# experiment) are not simulation results.
+FIGURES = [f"H{n:02d}" for n in range(1, 22)] + [f"V{n:02d}" for n in range(3, 20)]
+
+
+def snakemake(*args: str, cwd: Path = ROOT, timeout: float = 600) -> subprocess.CompletedProcess:
+    cmd = [*SNAKEMAKE, "--snakefile", str(ROOT / "Snakefile"), *args]
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout)
+
+
+def scratch(tmp_path: Path) -> Path:
+    """A working directory with copies of config/ and resources/ (results go there, not the repo)."""
+    for name in ("config", "resources"):
+        shutil.copytree(ROOT / name, tmp_path / name)
+    return tmp_path
+
+
+def test_dry_run_lists_every_figure():
+    run = snakemake("-n", "-F", "--cores", "2")
+    assert run.returncode == 0, run.stderr + run.stdout
+    out = run.stdout + run.stderr
+    for fig in FIGURES:
+        for ext in ("png", "pdf", "txt"):
+            assert f"results/figures/{fig}.{ext}" in out, f"{fig}.{ext} missing from the dry run"
+    assert "results/validation/validation.csv" in out
+    assert "results/benchmarks/engine.json" in out
+
+
+def test_configs_declare_every_figure():
+    config = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+    assert sorted(config["figures"]) == FIGURES
+
+
+def test_ci_dry_run_lists_every_figure():
+    run = snakemake("-n", "-F", "--cores", "2", "--configfile", "config/ci.yaml")
+    assert run.returncode == 0, run.stderr + run.stdout
+    out = run.stdout + run.stderr
+    for fig in FIGURES:
+        assert f"results/figures/{fig}.png" in out
+
+
+def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
+    """A sweep over a key the papers never swept (the restitution of a horizontal tube), added as
+    YAML only, expands to one case per point and reaches a curve."""
+    work = scratch(tmp_path)
+    (work / "config/restitution.yaml").write_text(yaml.safe_dump({"sweeps": {"h_restitution": {
+        "base": "config/cases/horizontal.yaml",
+        "overrides": {"run.duration": 20.0},
+        "parameters": {"particles.restitution": [0.3, 0.6, 0.9]},
+        "same_as": {"wall.restitution": "particles.restitution"}}},
+        "figures": {"X01": {"kind": "curve", "sweep": "h_restitution", "x": "particles.restitution"}}}))
+    run = snakemake("results/curves/h_restitution.png", "results/figures/X01.png", "-n", "--cores", "2",
+                    "--configfile", "config/restitution.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr + run.stdout
+    out = run.stdout + run.stderr
+    for e in ("0.3", "0.6", "0.9"):
+        assert f"results/cases/h_restitution/particles.restitution~{e}.nc" in out
+    assert "results/curves/h_restitution.csv" in out
+    assert "results/curves/h_restitution.png" in out
+    assert "results/figures/X01.pdf" in out  # and as a figure of one's own
+
+
+def test_typo_in_a_case_key_fails_before_any_job(tmp_path):
+    work = scratch(tmp_path)
+    (work / "config/typo.yaml").write_text(yaml.safe_dump({"sweeps": {"bad": {
+        "base": "config/cases/horizontal.yaml",
+        "parameters": {"particles.restitutoin": [0.3, 0.9]}}}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/typo.yaml", cwd=work)
+    assert run.returncode != 0
+    err = run.stderr + run.stdout
+    assert "particles.restitutoin" in err and "particles.restitution" in err  # names it, suggests the fix
+    assert not (work / "results").exists()
+
+
+def test_schema_refuses_an_unknown_config_key(tmp_path):
+    work = scratch(tmp_path)
+    (work / "config/bad.yaml").write_text(yaml.safe_dump({"analysis": {"positon": 0.2}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
+    assert run.returncode != 0
+    assert "positon" in run.stderr + run.stdout
+
+
+def test_bad_point_reference_is_refused(tmp_path):
+    work = scratch(tmp_path)
+    (work / "config/bad.yaml").write_text(yaml.safe_dump({"figures": {"H04": {
+        "kind": "porosity_image",
+        "case": {"sweep": "h_vs", "point": {"gas.superficial_velocity": 3.3}}}}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
+    assert run.returncode != 0
+    assert "h_vs" in run.stderr + run.stdout
+
+
+def test_lint_has_no_findings_but_missing_environments():
+    """--lint flags only that rules have no conda env/container (a pip-installed project)."""
+    run = snakemake("--lint")
+    text = run.stdout + run.stderr
+    findings = set(re.findall(r"^\s+\* (.+?):$", text, flags=re.MULTILINE))
+    assert "Lints for rule" in text or run.returncode == 0
+    assert findings <= {"Specify a conda environment or container for each rule."}, findings
+
+
+@pytest.mark.workflow
+def test_ci_workflow_runs_and_writes_every_output(tmp_path):
+    """The whole reduced workflow, as CI runs it: every figure, curve and the validation table."""
+    work = scratch(tmp_path)
+    start = time.monotonic()
+    run = snakemake("--cores", "2", "--configfile", "config/ci.yaml", cwd=work, timeout=1800)
+    wall = time.monotonic() - start
+    print(f"CI workflow: {wall:.0f} s wall")
+    assert run.returncode == 0, run.stderr[-5000:]
+    import pandas as pd
+    import xarray as xr
+    from matplotlib.image import imread
+
+    for fig in FIGURES:
+        png = work / f"results/figures/{fig}.png"
+        assert imread(png).ndim == 3, fig
+        assert (work / f"results/figures/{fig}.pdf").read_bytes().startswith(b"%PDF")
+        caption = (work / f"results/figures/{fig}.txt").read_text()
+        assert caption.startswith(f"{fig}:") and "tube L =" in caption, fig
+    config = yaml.safe_load((work / "config/config.yaml").read_text())
+    for sweep, spec in config["sweeps"].items():
+        if spec.get("parameters"):
+            table = pd.read_csv(work / f"results/curves/{sweep}.csv", comment="#")
+            assert len(table) >= 2 and table["pressure_drop"].notna().all(), sweep
+    validation = pd.read_csv(work / "results/validation/validation.csv")
+    assert set(validation["within"]) <= {"yes", "no", "not available"}
+    assert len(validation) == len(yaml.safe_load((work / "resources/paper_statements.yaml").read_text()))
+    with xr.open_dataset(work / "results/cases/h_default/base.nc") as ds:
+        assert "snapshot_position" in ds  # snapshots where profiles are drawn ...
+    for case in (work / "results/cases/h_vs").glob("*.nc"):
+        with xr.open_dataset(case) as ds:
+            assert "snapshot_position" not in ds  # ... and nowhere else
+    assert json.loads((work / "results/benchmarks/engine.json").read_text())["grains"] > 0
+    assert (work / "results/benchmarks/timings.csv").exists()

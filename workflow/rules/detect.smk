@@ -1,0 +1,48 @@
+# Stage 2: detect and track slugs in each case, reduce it to a summary, and the slug statistics
+# against position (H8-H11, V9-V12).
+
+
+rule detect:
+    """Slugs (porosity < threshold) per frame, tracked; the case summary (steady pressure drop,
+    regime, grains in the tube, slug rate/velocity/length at the analysis position)."""
+    input:
+        case=lambda wc: case_nc(*wc_key(wc)),
+    output:
+        slugs="results/slugs/{sweep}/{point}.csv",
+        summary="results/summaries/{sweep}/{point}.json",
+    params:
+        threshold=config["analysis"]["threshold"],
+        position=config["analysis"]["position"],
+        sweep=lambda wc: wc.sweep,
+        point=lambda wc: wc.point,
+        parameters=lambda wc: POINTS[wc.sweep][wc.point],
+    log:
+        "logs/detect/{sweep}/{point}.log",
+    benchmark:
+        "results/benchmarks/jobs/detect/{sweep}/{point}.tsv"
+    threads: 1
+    resources:
+        runtime=10,
+        mem_mb=2000,
+    script:
+        "../scripts/detect.py"
+
+
+rule statistics:
+    """Slug rate and statistics of slug properties at 30 positions along the tube, over the
+    steady window of the case."""
+    input:
+        slugs="results/slugs/{sweep}/{point}.csv",
+        summary="results/summaries/{sweep}/{point}.json",
+    output:
+        statistics="results/statistics/{sweep}/{point}.csv",
+    log:
+        "logs/statistics/{sweep}/{point}.log",
+    benchmark:
+        "results/benchmarks/jobs/statistics/{sweep}/{point}.tsv"
+    threads: 1
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    script:
+        "../scripts/statistics.py"

@@ -1,0 +1,22 @@
+# Stage 1: run each case of every sweep (one NetCDF case file per point; identical cases once).
+
+
+rule simulate:
+    """Run one case from an empty tube: base case YAML + the point's overrides -> case file."""
+    input:
+        base=lambda wc: SWEEPS[wc_key(wc)[0]]["base"],
+    output:
+        case="results/cases/{sweep}/{point}.nc",
+    params:
+        overrides=lambda wc: OVERRIDES[wc_key(wc)],
+        engine_version=ENGINE_VERSION,
+    log:
+        "logs/simulate/{sweep}/{point}.log",
+    benchmark:
+        "results/benchmarks/jobs/simulate/{sweep}/{point}.tsv"
+    threads: 1
+    resources:
+        runtime=runtime_minutes,
+        mem_mb=2000,
+    script:
+        "../scripts/simulate.py"

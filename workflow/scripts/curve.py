@@ -1,0 +1,40 @@
+"""Rule curve: the table of one sweep, one row per case: its parameters, then the steady pressure
+drop (Pa/m) +- batch-means standard error, regime and the other case summaries (SI units; the
+first line of the CSV holds the units as JSON attributes).
+
+Standalone:
+    python workflow/scripts/curve.py --input results/summaries/h_vs/a.json \
+        --input results/summaries/h_vs/b.json --output table=/tmp/h_vs.csv \
+        --params 'parameters=[gas.superficial_velocity]'
+"""
+
+import pandas as pd
+
+from _helpers import read_json, setup_logging, snakemake_or_cli, write_table
+
+RESULTS = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "stop_reason",
+           "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
+           "n_particles", "n_particles_sem", "mass_flow_out", "n_slugs"]
+UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s", "t_end": "s",
+         "slug_rate": "s-1", "slug_velocity": "m s-1", "slug_length": "m", "mass_flow_out": "kg s-1"}
+
+
+def table(summaries, parameters) -> pd.DataFrame:
+    """One row per case summary: point, parameters (case keys), results."""
+    rows = pd.DataFrame(summaries)
+    columns = ["point", *parameters, *[c for c in RESULTS if c in rows]]
+    out = rows[columns].sort_values(list(parameters) or ["point"]).reset_index(drop=True)
+    out.attrs.update(units=UNITS, parameters=list(parameters))
+    return out
+
+
+def main(smk) -> None:
+    log = setup_logging(smk)
+    summaries = [read_json(path) for path in smk.input]
+    out = table(summaries, list(smk.params.parameters or []))
+    write_table(out, smk.output.table)
+    log.info("%d cases\n%s", len(out), out.to_string())
+
+
+if __name__ == "__main__":
+    main(snakemake_or_cli(globals(), "curve"))

@@ -1,0 +1,289 @@
+"""Rule figure: one paper figure (H01..H21, V03..V19) as PNG + PDF + caption text.
+
+The kind (config figures.<fig>.kind) picks a small function below; each draws with the
+analysis.plots function of that figure family and returns the figure plus facts for the caption
+(numbers measured on the data drawn). The caption text starts with params.caption (title and the
+parameters of the cases, written when the workflow is parsed).
+
+Standalone (the params are the figure's config entry):
+    python workflow/scripts/figure.py --input statistics=results/statistics/h_default/base.csv \
+        --output png=/tmp/H08.png --output pdf=/tmp/H08.pdf --output txt=/tmp/H08.txt \
+        --params 'spec={kind: slug_rate}' --params 'caption=H08 test'
+"""
+
+import math
+
+import numpy as np
+import xarray as xr
+from matplotlib.figure import Figure
+
+from _helpers import (ensure_parent, note, read_table, save_figure, setup_logging,
+                      snakemake_or_cli)
+
+HPA = 100.0
+
+
+def _list(value) -> list:
+    """A named input as a list (Snakemake gives a list for list inputs, the CLI a string)."""
+    return list(value) if isinstance(value, (list, tuple)) else [value]
+
+
+def _open(path) -> xr.Dataset:
+    with xr.open_dataset(path) as ds:
+        return ds.load()
+
+
+def _case(path):
+    from analysis.casefile import open_case
+    return open_case(path)
+
+
+def _last_window(ds, seconds_shown):
+    from analysis.casefile import seconds
+    t = seconds(ds["time"].values)
+    return (max(float(t[0]), float(t[-1]) - seconds_shown), float(t[-1]))
+
+
+def _window_facts(ds, t_range) -> str:
+    """Mean grains in the tube and pressure drop over the window drawn, as in the papers' captions."""
+    from analysis.casefile import geometry, seconds
+    t = seconds(ds["time"].values)
+    sel = (t >= t_range[0]) & (t <= t_range[1])
+    grains = float(np.mean(ds["n_particles"].values[sel]))
+    dp = float(np.mean(ds["pressure_drop"].values[sel])) / geometry(ds).tube_length / HPA
+    return (f"shown: t = {t_range[0]:.2f}-{t_range[1]:.2f} s; on average {grains:.0f} grains in the "
+            f"tube and a pressure drop of {dp:.3g} hPa/m over this window")
+
+
+# ---- one function per kind: (inputs, spec, analysis settings) -> (Figure, [facts]) ------------
+
+def porosity_image(inp, spec, settings):
+    from analysis.plots import porosity_image as draw
+    ds = _case(_list(inp.cases)[0])
+    window = _last_window(ds, float(settings.get("image_window", 4.0)))
+    return draw(ds, t_range=window), [_window_facts(ds, window)]
+
+
+def porosity_image_pair(inp, spec, settings):
+    from analysis.plots import porosity_image as draw
+    fig = Figure(figsize=(7.0, 5.5), layout="constrained")
+    cases = _list(inp.cases)
+    axes = fig.subplots(len(cases), 1)
+    facts = []
+    for label, ax, path in zip("abcdef", np.atleast_1d(axes), cases):
+        ds = _case(path)
+        window = _last_window(ds, float(settings.get("image_window", 4.0)))
+        draw(ds, ax=ax, t_range=window)
+        ax.set_title(f"({label})", loc="left", fontsize=9)
+        facts.append(f"({label}) {_window_facts(ds, window)}")
+    return fig, facts
+
+
+def grains_3d(inp, spec, settings):
+    """H2: the grains of a slug as spheres (a 3-D scatter), coloured by axial velocity."""
+    from analysis.casefile import geometry
+    from analysis.snapshots import snapshot, snapshot_times
+    ds = _case(inp.case)
+    geo = geometry(ds)
+    selection = read_table(inp.selection)
+    slugs = read_table(inp.slugs)
+    times = snapshot_times(ds)
+    stretch = float(settings.get("grains_stretch", 0.113))
+    facts = []
+    if len(selection):
+        row = selection.iloc[0]
+        k = int(np.argmin(np.abs(times - row["time"])))
+        track = slugs[slugs["slug_id"] == row["slug_id"]].sort_values("time")
+        center = float(np.interp(times[k], track["time"], track["x_center"]))
+        facts.append(f"slug {int(row['slug_id'])} at t = {times[k]:.2f} s, centre x = {center:.3f} m, "
+                     f"about {row['n_particles']:.0f} grains")
+    else:
+        k = len(times) - 1
+        _, pos, _ = snapshot(ds, k)
+        center = float(np.mean(pos[:, 0])) if len(pos) else geo.tube_length / 2
+        facts.append(f"no slug selected in this run: last snapshot (t = {times[k]:.2f} s)")
+    _, pos, vel = snapshot(ds, k)
+    inside = np.abs(pos[:, 0] - center) <= stretch / 2
+    pos, vel = pos[inside], vel[inside]
+    fig = Figure(figsize=(9.0, 3.0))
+    ax = fig.add_axes((0.0, 0.0, 0.9, 1.0), projection="3d")
+    mm = 1e3
+    axis_pt = 9.0 * 72 * 0.62  # rendered length of the x axis (points) at this zoom and view
+    size = (geo.particle_diameter / stretch * axis_pt) ** 2
+    sc = ax.scatter(pos[:, 0] * mm, pos[:, 1] * mm, pos[:, 2] * mm, s=size, c=vel[:, 0],
+                    cmap="viridis", depthshade=True, edgecolors="k", linewidths=0.2)
+    ax.set_xlim((center - stretch / 2) * mm, (center + stretch / 2) * mm)
+    ax.set_ylim(-geo.tube_radius * mm, geo.tube_radius * mm)
+    ax.set_zlim(-geo.tube_radius * mm, geo.tube_radius * mm)
+    ax.set_box_aspect((stretch, geo.tube_diameter, geo.tube_diameter), zoom=2.2)
+    ax.set_xlabel("x (mm)", labelpad=12)
+    ax.set_yticks([])
+    ax.set_zticks([])
+    ax.view_init(elev=12, azim=-82)
+    cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
+    fig.colorbar(sc, cax=cax, label="axial velocity (m/s)")
+    facts.append(f"{len(pos)} grains in the {stretch * 100:.1f} cm stretch drawn")
+    return fig, facts
+
+
+def _curve_facts(table, x, group=None) -> list[str]:
+    """One line per case: parameter value(s) (papers' units), pressure drop, regime, stop reason."""
+    from analysis.plots import PARAMETERS
+    facts = []
+    for _, row in table.iterrows():
+        where = []
+        for key in (x, group):
+            if key and key in row:
+                label, factor = PARAMETERS.get(key, (key, 1.0))
+                unit = label[label.rfind("(") + 1:-1] if label.endswith(")") else ""
+                where.append(f"{key} = {row[key] * factor:g} {unit}".strip())
+        facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g} +- "
+                     f"{row['pressure_drop_sem'] / HPA:.2g} hPa/m ({row['regime']}, "
+                     f"{row.get('stop_reason', '')})")
+    return facts
+
+
+def curve(inp, spec, settings):
+    from analysis.plots import characteristic_curves
+    table = read_table(_list(inp.tables)[0])
+    x, group = spec["x"], spec.get("group")
+    fig = characteristic_curves(table, x=x, group=group)
+    facts = _curve_facts(table, x, group)
+    if inp.get("experiment"):
+        exp = experiment_table(inp.experiment)
+        ax = fig.axes[0]
+        ax.errorbar(exp["superficial_velocity"], exp["pressure_drop_hPa_m"],
+                    yerr=exp["pressure_drop_err_hPa_m"], fmt="ks", ms=4, capsize=2,
+                    label="experiment (table 1)")
+        ax.legend(frameon=False, fontsize=8)
+        facts.append("experiment (V table 1): " + "; ".join(
+            f"series {r.series}: {r.air_flow_l_min} l/min = {r.superficial_velocity:.3f} m/s, "
+            f"{r.pressure_drop_hPa_m} +- {r.pressure_drop_err_hPa_m} hPa/m at {r.granulate_flow_kg_h} kg/h"
+            for r in exp.itertuples()))
+    return fig, facts
+
+
+def experiment_table(path):
+    """V table 1 with the superficial velocity v_s = 4 Vdot / (pi D^2) of each air flow (m/s)."""
+    import pandas as pd
+    exp = pd.read_csv(path, comment="#")
+    diameter = 0.007  # m, the experiment's tube (V §3)
+    exp["superficial_velocity"] = exp["air_flow_l_min"] / 1000 / 60 / (math.pi * diameter**2 / 4)
+    return exp
+
+
+def curve_pair(inp, spec, settings):
+    from analysis.plots import characteristic_curves
+    fig = Figure(figsize=(8.0, 3.5), layout="constrained")
+    tables = _list(inp.tables)
+    axes = fig.subplots(1, len(tables))
+    facts = []
+    for label, ax, path in zip("abcdef", np.atleast_1d(axes), tables):
+        table = read_table(path)
+        characteristic_curves(table, x=spec["x"], group=spec.get("group"), ax=ax)
+        ax.set_title(f"({label})", loc="left", fontsize=9)
+        facts += [f"({label}) {f}" for f in _curve_facts(table, spec["x"], spec.get("group"))]
+    return fig, facts
+
+
+def _stats_facts(stats) -> list[str]:
+    n = int(stats["n_slugs"].sum())
+    return [f"statistics over t = {stats.attrs.get('t_start', float('nan')):.2f}-"
+            f"{stats.attrs.get('t_end', float('nan')):.2f} s (steady window), {n} slug passages "
+            f"at {len(stats)} positions"]
+
+
+def slug_rate(inp, spec, settings):
+    from analysis.plots import slug_rate as draw
+    stats = read_table(inp.statistics)
+    fig = draw(stats)
+    if not stats["n_slugs"].sum():
+        note(fig, "no slugs detected in this run")
+    return fig, _stats_facts(stats)
+
+
+def slug_statistic(inp, spec, settings):
+    from analysis.plots import slug_statistic as draw
+    stats = read_table(inp.statistics)
+    fig = draw(stats, spec["quantity"])
+    if not stats["n_slugs"].sum():
+        note(fig, "no slugs detected in this run")
+    return fig, _stats_facts(stats)
+
+
+def profile(inp, spec, settings):
+    from analysis.plots import slug_profile
+    prof = _open(inp.profile)
+    fig = slug_profile(prof, spec.get("fields", ["porosity"]))
+    n = int(prof.attrs.get("n_selected", 0))
+    a = prof.attrs
+    facts = [f"averaged over {n} of {a.get('n_passing', 0)} slugs passing x = {a.get('position', float('nan')):g} m "
+             f"with length {a.get('length_center', float('nan')):.3g} +- {a.get('length_band', float('nan')):g} m "
+             f"and maximal velocity {a.get('velocity_center', float('nan')):.3g} +- "
+             f"{a.get('velocity_band', float('nan')):g} m/s; about {a.get('mean_n_particles', float('nan')):.0f} "
+             "grains per slug; bands are +- one standard error across slugs"]
+    if n == 0:
+        note(fig, "no slugs selected in this run")
+    return fig, facts
+
+
+def _snapshot_facts(ds) -> list[str]:
+    a = ds.attrs
+    who = f"slug {a.get('slug_id')}" if int(a.get("slug_id", -1)) >= 0 else "no slug (window centred in the snapshots)"
+    return [f"{who} passing x0 = {a.get('x0', float('nan')):.4f} m at t = {a.get('t_center', float('nan')):.3f} s; "
+            f"{ds.sizes.get('snapshot_time', 0)} snapshots over {a.get('window', float('nan')):g} s"]
+
+
+def cross_sections(inp, spec, settings):
+    from analysis.plots import cross_section_strip
+    ds = _open(inp.snapshots)
+    fig = cross_section_strip(ds)
+    return fig, _snapshot_facts(ds)
+
+
+def velocity_height_image(inp, spec, settings):
+    from analysis.plots import velocity_height_image as draw
+    ds = _open(inp.snapshots)
+    fig = draw(ds)
+    return fig, _snapshot_facts(ds)
+
+
+def velocity_height(inp, spec, settings):
+    from analysis.plots import velocity_height as draw
+    ds = _open(inp.snapshots)
+    mean = xr.Dataset({"velocity": ds["mean_velocity"]}, coords={"height": ds["height"]})
+    fig = draw(mean)
+    facts = _snapshot_facts(ds) + [f"averaged over t = {ds.attrs.get('average_t_start', float('nan')):.3f}-"
+                                   f"{ds.attrs.get('average_t_end', float('nan')):.3f} s while the slug covers x0"]
+    return fig, facts
+
+
+def radial(inp, spec, settings):
+    from analysis.plots import radial_profile
+    ds = _open(inp.radial)
+    fig = radial_profile(ds, spec.get("field", "porosity"))
+    n = int(ds.attrs.get("n_slugs", 0))
+    if n == 0:
+        note(fig, "no plugs with a snapshot in this run")
+    return fig, [f"averaged over {n} plugs (rings {0.25:g} d wide, 1.5 d high); "
+                 f"{ds.attrs.get('note', '')}".strip("; ")]
+
+
+KINDS = {f.__name__: f for f in (porosity_image, porosity_image_pair, grains_3d, curve, curve_pair,
+                                  slug_rate, slug_statistic, profile, cross_sections,
+                                  velocity_height_image, velocity_height, radial)}
+
+
+def main(smk) -> None:
+    log = setup_logging(smk)
+    spec = dict(smk.params.spec)
+    fig, facts = KINDS[spec["kind"]](smk.input, spec, dict(smk.params.get("analysis") or {}))
+    save_figure(fig, smk.output.png, smk.output.pdf)
+    text = [str(smk.params.get("caption") or ""), *[f"- {f}" for f in facts],
+            "Inputs: " + ", ".join(str(p) for p in smk.input)]
+    ensure_parent(smk.output.txt).write_text("\n".join(text) + "\n")
+    log.info("\n".join(text))
+
+
+if __name__ == "__main__":
+    main(snakemake_or_cli(globals(), "figure"))

@@ -1,0 +1,171 @@
+"""Sweeps declared in the config, expanded to one case per point (used by the Snakefile and tests).
+
+A sweep (config `sweeps.<name>`) names a base case YAML, fixed overrides and parameters with value
+lists; every combination of the parameter values is one point (a full factorial, like Snakemake's
+Paramspace). A value may also be a mapping of several keys that move together (its own key gives the
+point name), and `same_as` ties a key to a parameter (wall.friction follows particles.friction).
+
+A point is named by its parameters, `key~value` joined by `_`, e.g.
+`gas.superficial_velocity~1_feed.mass_flow_kg_h~2.49`; a sweep without parameters has the single
+point `base`. Points are looked up by name (never parsed), so names only need to be unique.
+
+Precedence of the overrides of a case, later wins:
+  base YAML < derived (what the consumers need) < sweep `overrides` < config `all_cases` < point.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any, Iterable, Mapping
+
+BASE_POINT = "base"
+
+# What each figure kind or validation measure needs from a case:
+#   steady    - only a steady mean (the case may stop once it has converged: run.until_steady)
+#   series    - the slice time series over the whole run (fixed duration)
+#   snapshots - grain snapshots in the window output.snapshot_x_min .. x_max
+KIND_NEEDS = {
+    "porosity_image": {"series"},
+    "porosity_image_pair": {"series"},
+    "grains_3d": {"series", "snapshots"},
+    "curve": {"steady"},
+    "curve_pair": {"steady"},
+    "slug_rate": {"series"},
+    "slug_statistic": {"series"},
+    "profile": {"series"},
+    "cross_sections": {"series", "snapshots"},
+    "velocity_height_image": {"series", "snapshots"},
+    "velocity_height": {"series", "snapshots"},
+    "radial": {"series", "snapshots"},
+}
+
+
+class SweepError(ValueError):
+    """A sweep or a reference to a sweep point that does not make sense (message names it)."""
+
+
+def format_value(value: Any) -> str:
+    """A value as written in a point name: 1.0 -> '1', 6.73e-05 -> '6.73e-05', True -> 'true'."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        text = format(value, ".12g")
+        return text
+    return str(value).replace("/", "-").replace(" ", "-")
+
+
+def _levels(name: str, values: Any, sweep: str) -> list[dict[str, Any]]:
+    """The levels of one parameter: each a mapping of case keys to values."""
+    if not isinstance(values, list) or not values:
+        raise SweepError(f"sweep {sweep!r}: parameter {name!r} needs a non-empty list of values")
+    levels = []
+    for value in values:
+        if isinstance(value, Mapping):
+            if name not in value:
+                raise SweepError(f"sweep {sweep!r}: every mapping value of parameter {name!r} must "
+                                 f"set {name!r} itself (it names the point); got {dict(value)}")
+            levels.append(dict(value))
+        else:
+            levels.append({name: value})
+    return levels
+
+
+def point_name(parameters: Mapping[str, Any]) -> str:
+    """'key~value' pairs joined by '_' (the parameters in declaration order), or 'base'."""
+    if not parameters:
+        return BASE_POINT
+    return "_".join(f"{key}~{format_value(value)}" for key, value in parameters.items())
+
+
+def expand(sweep: str, spec: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """Points of a sweep: name -> the overrides that define the point (parameters, linked keys, same_as).
+
+    Raises SweepError when two points would get the same name or `same_as` names an unknown parameter.
+    """
+    parameters = spec.get("parameters") or {}
+    same_as = spec.get("same_as") or {}
+    names = list(parameters)
+    for target, source in same_as.items():
+        if source not in names:
+            raise SweepError(f"sweep {sweep!r}: same_as {target!r}: {source!r} is not one of its "
+                             f"parameters {names}")
+    points: dict[str, dict[str, Any]] = {}
+    for combo in itertools.product(*[_levels(n, parameters[n], sweep) for n in names]):
+        values: dict[str, Any] = {}
+        for level in combo:
+            values.update(level)
+        label = point_name({n: level[n] for n, level in zip(names, combo)})
+        for target, source in same_as.items():
+            values[target] = values[source]
+        if label in points:
+            raise SweepError(f"sweep {sweep!r}: two points are both named {label!r}; "
+                             "make the parameter values distinct")
+        points[label] = values
+    return points
+
+
+def _equal(a: Any, b: Any) -> bool:
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
+        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=1e-15)
+    return a == b
+
+
+def find_point(sweep: str, points: Mapping[str, Mapping[str, Any]], where: Mapping[str, Any] | None,
+               required: bool = True) -> str | None:
+    """Name of the one point whose values match `where` (all keys equal); the only point if None."""
+    where = where or {}
+    found = [name for name, values in points.items()
+             if all(key in values and _equal(values[key], v) for key, v in where.items())]
+    if len(found) == 1:
+        return found[0]
+    if not required and not found:
+        return None
+    what = f"matching {dict(where)}" if where else "(give `point:` to choose one)"
+    raise SweepError(f"sweep {sweep!r} has {len(found)} points {what}; its points are "
+                     f"{list(points)}")
+
+
+def derived_overrides(needs: set[str]) -> dict[str, Any]:
+    """Outputs a case needs from its consumers: snapshots only for snapshot figures; stop when
+    steady when every consumer uses only the steady mean."""
+    out: dict[str, Any] = {"output.snapshots": "snapshots" in needs}
+    out["run.until_steady"] = bool(needs) and needs <= {"steady"}
+    return out
+
+
+def case_overrides(config: Mapping[str, Any], sweep: str, point: str,
+                   needs: set[str]) -> dict[str, Any]:
+    """Every override of one case, in precedence order (see the module docstring)."""
+    spec = config["sweeps"][sweep]
+    points = expand(sweep, spec)
+    if point not in points:
+        raise SweepError(f"sweep {sweep!r} has no point {point!r}; its points are {list(points)}")
+    merged: dict[str, Any] = {}
+    for layer in (derived_overrides(needs), spec.get("overrides") or {},
+                  config.get("all_cases") or {}, points[point]):
+        merged.update(layer)
+    return merged
+
+
+def yaml_scalar(value: Any) -> str:
+    """A scalar written so that YAML (engine.case.parse_override) reads it back as the same value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        text = repr(value)
+        mantissa, _, exponent = text.partition("e")
+        if exponent and "." not in mantissa:  # PyYAML reads 1e-05 as a string, 1.0e-05 as a float
+            text = f"{mantissa}.0e{exponent}"
+        return text
+    return str(value)
+
+
+def override_strings(overrides: Mapping[str, Any]) -> list[str]:
+    """{'a.b': 1.0} -> ['a.b=1.0'] in the form `plugsim run --set` and engine.Case accept."""
+    return [f"{key}={yaml_scalar(value)}" for key, value in overrides.items()]
+
+
+def references(ref: Mapping[str, Any] | Iterable) -> list[Mapping[str, Any]]:
+    """A case reference ({sweep, point}) or a list of them, as a list."""
+    return [ref] if isinstance(ref, Mapping) else list(ref)

@@ -1,0 +1,277 @@
+"""Rule validation: the papers' quantitative statements (resources/paper_statements.yaml) against
+our results: paper value and tolerance, ours +- standard error, ratio ours/paper, within or not.
+
+Ours is within when its interval (ours +- 2 standard errors, or +- the half-width of a sweep
+spacing for transitions and maxima) overlaps the statement's interval (value +- tolerance, the
+range, or value / factor .. value * factor). Tolerances come from the statements file with their
+justification and are never adjusted here.
+
+Standalone (params.statements as prepared by workflow/rules/validation.smk):
+    snakemake -n validation   # shows the inputs; then run the rule, it is cheap
+"""
+
+import math
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from _helpers import ensure_parent, read_json, read_table, setup_logging, snakemake_or_cli
+
+TO_UNIT = {"hPa/m": 0.01, "Pa/m": 1.0, "m/s": 1.0, "m": 1.0, "cm": 100.0, "1": 1.0, "1/s": 1.0,
+           "Pa": 1.0, "r/d": 1.0}
+NAN = float("nan")
+
+
+class NotMeasurable(Exception):
+    """The data exist but do not contain the quantity (e.g. no slugs passed the position)."""
+
+
+# ---- measures: statement -> (value, error, error kind) in SI (or categorical) -----------------
+
+def _summary(st, k=0):
+    return read_json(st["files"]["summaries"][k])
+
+
+def pressure_drop(st, ctx):
+    s = _summary(st)
+    return s["pressure_drop"], s["pressure_drop_sem"], "sem"
+
+
+def n_particles(st, ctx):
+    s = _summary(st)
+    return s.get("n_particles", NAN), s.get("n_particles_sem", NAN), "sem"
+
+
+def regime(st, ctx):
+    return _summary(st)["regime"], NAN, "category"
+
+
+def ratio(st, ctx):
+    a, b = _summary(st, 0), _summary(st, 1)
+    va, vb = a["pressure_drop"], b["pressure_drop"]
+    value = va / vb
+    err = abs(value) * math.hypot(a["pressure_drop_sem"] / va, b["pressure_drop_sem"] / vb)
+    return value, err, "sem"
+
+
+def _position(st, ctx, slugs):
+    pos = st.get("position", "analysis")
+    if pos == "analysis":
+        return float(ctx["position"])
+    if pos == "inlet":
+        from analysis.statistics import default_positions
+        return float(default_positions(slugs.attrs["tube_length"])[0])
+    return float(pos)
+
+
+def _stats_at(st, ctx):
+    from analysis.statistics import slug_statistics
+    slugs = read_table(st["files"]["slugs"])
+    summary = read_json(st["files"]["summary"])
+    if not len(slugs):
+        raise NotMeasurable("no slugs detected in the case")
+    pos = _position(st, ctx, slugs)
+    if not 0 < pos < slugs.attrs["tube_length"]:
+        raise NotMeasurable(f"position {pos:g} m is outside the tube")
+    return slug_statistics(slugs, [pos], t_start=summary["t_start"]).iloc[0]
+
+
+def slug_stat(st, ctx):
+    row = _stats_at(st, ctx)
+    q = st["quantity"]
+    if not row["n_slugs"]:
+        raise NotMeasurable("no slug passed the position")
+    return row[f"{q}_mean"], row[f"{q}_sem"], "sem"
+
+
+def slug_rate(st, ctx):
+    row = _stats_at(st, ctx)
+    return row["rate"], row["rate_sem"], "sem"
+
+
+def _profile(st):
+    with xr.open_dataset(st["files"]["profile"]) as ds:
+        prof = ds.load()
+    if int(prof.attrs.get("n_selected", 0)) == 0:
+        raise NotMeasurable("no slugs selected for the averaged profile")
+    return prof
+
+
+def _extremum(st, pick):
+    prof = _profile(st)
+    mean = prof[st["field"]].values
+    if not np.isfinite(mean).any():
+        raise NotMeasurable("profile is empty")
+    i = int(pick(mean))
+    return float(mean[i]), float(prof[f"{st['field']}_sem"].values[i]), "sem"
+
+
+def profile_min(st, ctx):
+    return _extremum(st, np.nanargmin)
+
+
+def profile_max(st, ctx):
+    return _extremum(st, np.nanargmax)
+
+
+def selection_mean(st, ctx):
+    sel = read_table(st["files"]["selection"])
+    values = pd.to_numeric(sel[st["column"]], errors="coerce").dropna() if len(sel) else []
+    if not len(values):
+        raise NotMeasurable("no slugs selected")
+    sem = float(np.std(values, ddof=1) / np.sqrt(len(values))) if len(values) > 1 else NAN
+    return float(np.mean(values)), sem, "sem"
+
+
+def _curve_rows(st):
+    table = read_table(st["files"]["curve"])
+    for key, value in (st.get("where") or {}).items():
+        table = table[np.isclose(table[key].astype(float), float(value))]
+    return table.sort_values(st["x"]).reset_index(drop=True)
+
+
+def transition(st, ctx):
+    rows = _curve_rows(st)
+    x = rows[st["x"]].to_numpy(dtype=float)
+    inside = (rows["regime"] == st["regime"]).to_numpy()
+    if not len(x):
+        raise NotMeasurable("no points in the sweep")
+    if inside.all():
+        raise NotMeasurable(f"every point is {st['regime']} (transition above {x[-1]:g})")
+    first = int(np.argmin(inside))  # first point that is not in the regime
+    if first == 0:
+        raise NotMeasurable(f"no point is {st['regime']} (transition below {x[0]:g})")
+    return (x[first - 1] + x[first]) / 2, (x[first] - x[first - 1]) / 2, "half-width"
+
+
+def argmax(st, ctx):
+    rows = _curve_rows(st)
+    lo, hi = st.get("within", [-np.inf, np.inf])
+    rows = rows[(rows[st["x"]] >= lo) & (rows[st["x"]] <= hi)].reset_index(drop=True)
+    if not len(rows):
+        raise NotMeasurable("no points in the range")
+    x = rows[st["x"]].to_numpy(dtype=float)
+    i = int(np.nanargmax(rows["pressure_drop"].to_numpy(dtype=float)))
+    gaps = np.diff(x)
+    half = max(gaps[i - 1] if i > 0 else 0.0, gaps[i] if i < len(gaps) else 0.0) / 2 if len(x) > 1 else NAN
+    return x[i], half, "half-width"
+
+
+def radial_outer_minimum(st, ctx):
+    with xr.open_dataset(st["files"]["radial"]) as ds:
+        prof = ds.load()
+    d = float(prof.attrs["particle_diameter"])
+    phi = prof["porosity"].values
+    r = prof["r"].values / d
+    if not np.isfinite(phi).any():
+        raise NotMeasurable("no radial profile")
+    minima = [i for i in range(len(phi)) if np.isfinite(phi[i])
+              and (i == 0 or phi[i] < phi[i - 1]) and (i == len(phi) - 1 or phi[i] <= phi[i + 1])
+              and phi[i] < 0.7]
+    if not minima:
+        raise NotMeasurable("no porosity minimum below 0.7")
+    return float(r[minima[-1]]), float(np.median(np.diff(r))) / 2, "half-width"
+
+
+MEASURES = {f.__name__: f for f in (pressure_drop, n_particles, regime, ratio, slug_stat, slug_rate,
+                                     profile_min, profile_max, selection_mean, transition, argmax,
+                                     radial_outer_minimum)}
+
+
+# ---- comparison -------------------------------------------------------------------------------
+
+def paper_interval(st):
+    if "range" in st:
+        lo, hi = st["range"]
+        return float(lo), float(hi), (float(lo) + float(hi)) / 2
+    value = float(st["value"])
+    if "factor" in st:
+        return value / float(st["factor"]), value * float(st["factor"]), value
+    return value - float(st["tolerance"]), value + float(st["tolerance"]), value
+
+
+def paper_text(st) -> str:
+    unit = st.get("unit", "")
+    if "expected" in st:
+        return str(st["expected"])
+    if "range" in st:
+        return f"{st['range'][0]:g}-{st['range'][1]:g} {unit}"
+    if "factor" in st:
+        return f"{st['value']:g} {unit} (x/ {st['factor']:g})"
+    return f"{st['value']:g} +- {st['tolerance']:g} {unit}"
+
+
+def compare(st, ctx) -> dict:
+    row = {"id": st["id"], "paper": st["paper"], "source": st["source"],
+           "statement": st["statement"], "paper_value": paper_text(st), "unit": st.get("unit", ""),
+           "justification": " ".join(str(st.get("justification", "")).split()),
+           "cases": ", ".join(c for c in st.get("case_names") or [] if c) or st.get("sweep", ""),
+           "ours": NAN, "ours_error": NAN, "error_kind": "", "ratio": NAN, "within": "",
+           "note": ""}
+    if not st.get("files"):
+        row.update(within="not available", note="the case or sweep is not in this configuration")
+        return row
+    try:
+        value, err, kind = MEASURES[st["measure"]](st, ctx)
+    except NotMeasurable as why:
+        row.update(within="not available", note=str(why))
+        return row
+    if kind == "category":
+        row.update(ours=value, error_kind="category",
+                   within="yes" if value == st["expected"] else "no")
+        return row
+    factor = TO_UNIT.get(st.get("unit", "1"), 1.0)
+    value, err = float(value) * factor, float(err) * factor
+    lo, hi, mid = paper_interval(st)
+    reach = 0.0 if not math.isfinite(err) else (2 * err if kind == "sem" else err)
+    if not math.isfinite(value):
+        row.update(within="not available", note="not measurable (NaN)")
+        return row
+    row.update(ours=value, ours_error=err, error_kind=kind,
+               ratio=value / mid if mid else NAN,
+               within="yes" if (value + reach >= lo and value - reach <= hi) else "no")
+    if not math.isfinite(err):
+        row["note"] = "no standard error (too few samples)"
+    return row
+
+
+def markdown(table: pd.DataFrame, ctx) -> str:
+    counts = table["within"].value_counts()
+    lines = ["# Validation against the papers", "",
+             f"{len(table)} statements: {counts.get('yes', 0)} within tolerance, "
+             f"{counts.get('no', 0)} outside, {counts.get('not available', 0)} not available.", "",
+             "Ours is within when ours +- 2 standard errors (+- half the sweep spacing for "
+             "transitions and maxima) overlaps the paper's value +- tolerance (or range). "
+             "Tolerances and their justification: resources/paper_statements.yaml.", ""]
+    if ctx.get("all_cases"):
+        lines += [f"**Configuration overrides applied to every case:** `{ctx['all_cases']}` "
+                  "(a reduced run: the comparison is not meaningful).", ""]
+    lines += ["| id | source | statement | paper | ours | ratio | within | note |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in table.itertuples():
+        if r.error_kind == "category":
+            ours = str(r.ours)
+        elif isinstance(r.ours, float) and math.isfinite(r.ours):
+            ours = f"{r.ours:.4g}" + (f" +- {r.ours_error:.2g}" if math.isfinite(r.ours_error) else "")
+            ours += f" {r.unit}" if r.unit not in ("1", "-") else ""
+        else:
+            ours = "-"
+        ratio_text = f"{r.ratio:.2f}" if isinstance(r.ratio, float) and math.isfinite(r.ratio) else "-"
+        lines.append(f"| {r.id} | {r.paper} {r.source} | {r.statement} | {r.paper_value} | {ours} | "
+                     f"{ratio_text} | {r.within} | {r.note} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(smk) -> None:
+    log = setup_logging(smk)
+    ctx = {"position": smk.params.get("position", 0.26), "all_cases": smk.params.get("all_cases") or {}}
+    rows = [compare(st, ctx) for st in smk.params.statements]
+    table = pd.DataFrame(rows)
+    table.to_csv(ensure_parent(smk.output.csv), index=False)
+    ensure_parent(smk.output.md).write_text(markdown(table, ctx))
+    log.info("\n%s", table[["id", "paper_value", "ours", "ours_error", "ratio", "within", "note"]])
+
+
+if __name__ == "__main__":
+    main(snakemake_or_cli(globals(), "validation"))
