@@ -42,6 +42,7 @@ rule all:
         "results/validation/validation.csv",
         "results/validation/validation.md",
         "results/benchmarks/engine.json",
+        [f"results/benchmarks/work_precision.{e}" for e in ("csv", "png", "pdf") if WORK_PRECISION],
 
 
 rule figures:

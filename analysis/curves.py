@@ -112,7 +112,7 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
 
     Results: pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end (s, the steady window),
     dense_fraction, slug_fraction, regime, slug_rate (1/s) and mean slug_velocity (m/s) and
-    length (m) at `position` (default mid-tube), n_particles (time mean in the window),
+    length (m) at `position` (default mid-tube) with their standard errors (_sem), n_particles (time mean in the window),
     mass_flow_out (kg/s, slope of mass_out over the window).
     """
     geo = geometry(ds)
@@ -131,6 +131,8 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     row["slug_rate"] = float(stats["rate"].iloc[0]) if stats is not None else 0.0
     row["slug_velocity"] = float(stats["slug_velocity_mean"].iloc[0]) if stats is not None else np.nan
     row["slug_length"] = float(stats["length_mean"].iloc[0]) if stats is not None else np.nan
+    row["slug_velocity_sem"] = float(stats["slug_velocity_sem"].iloc[0]) if stats is not None else np.nan
+    row["slug_length_sem"] = float(stats["length_sem"].iloc[0]) if stats is not None else np.nan
     if "n_particles" in ds:
         row["n_particles"] = float(np.mean(ds["n_particles"].values[window]))
     if "mass_out" in ds and window.sum() > 1:

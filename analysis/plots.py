@@ -226,3 +226,50 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
     if group is not None and len(groups) > 1:
         ax.legend(frameon=False)
     return fig
+
+
+KNOBS = {  # work-precision knobs -> legend label with unit
+    "numerics.time_step_fraction": r"time step $\Delta t/t_c$",
+    "particles.stiffness": r"stiffness $k_n$ (N/m)",
+    "gas.nodes_x": "axial gas nodes",
+    "numerics.gas_interval": "grain steps per gas update",
+}
+OBSERVABLE_LABELS = {"pressure_drop": "pressure drop", "slug_velocity": "slug velocity",
+                     "slug_length": "slug length"}
+
+
+def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
+    """Relative error of pressure drop, slug velocity and slug length against the CPU time of
+    each case (one core: its wall time on an otherwise idle machine) (analysis.precision.relative_errors tables, one per knob). Filled markers: error
+    resolved (> 2 combined standard errors); open markers: within the statistical noise, whose
+    one-standard-error level is the dotted line below each point. A star marks each knob's
+    default value (`defaults`: parameter -> value); the reference case is drawn at the bottom."""
+    fig = Figure(figsize=(11.0, 3.6), layout="constrained")
+    axes = fig.subplots(1, len(OBSERVABLE_LABELS), sharex=True)
+    defaults = defaults or {}
+    floor = 1e-4  # the reference (error 0) is drawn here on the log axis
+    for ax, (q, name) in zip(axes, OBSERVABLE_LABELS.items()):
+        for table in tables:
+            knob = table["parameter"].iloc[0]
+            t = table["cpu_time_s"].to_numpy(dtype=float)
+            err = np.maximum(table[f"{q}_error"].to_numpy(dtype=float), floor)
+            noise = table[f"{q}_noise"].to_numpy(dtype=float)
+            resolved = table[f"{q}_resolved"].to_numpy(dtype=bool)
+            line = ax.plot(t, err, "-", lw=0.8, label=KNOBS.get(knob, knob))[0]
+            color = line.get_color()
+            ax.plot(t[resolved], err[resolved], "o", color=color, ms=5)
+            ax.plot(t[~resolved], err[~resolved], "o", mfc="white", color=color, ms=5)
+            ax.plot(t, noise, ":", color=color, lw=0.8)
+            for ti, ei, v in zip(t, err, table["value"]):
+                ax.annotate(f"{v:g}", (ti, ei), textcoords="offset points", xytext=(3, 3), fontsize=6,
+                            color=color)
+            if knob in defaults:
+                sel = np.isclose(table["value"].to_numpy(dtype=float), float(defaults[knob]))
+                ax.plot(t[sel], err[sel], "*", color=color, ms=12, mfc="none")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(name, fontsize=10)
+        ax.set_xlabel("CPU time of the case (s, one core)")
+    axes[0].set_ylabel("relative error against the reference")
+    axes[0].legend(frameon=False, fontsize=7)
+    return fig

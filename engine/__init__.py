@@ -6,5 +6,5 @@ Public API: `Case` (validated configuration), `Simulation` (advance a case in ti
 from .case import Case, CaseError, KEYS
 from .simulation import Simulation, SimulationError
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 __all__ = ["Case", "CaseError", "KEYS", "Simulation", "SimulationError", "__version__"]

@@ -45,7 +45,10 @@ def _run(args: argparse.Namespace) -> int:
                         format="plugsim: %(message)s")
     case = Case.from_yaml(args.case, args.set)
     try:
-        run_case(case, args.out, quiet=args.quiet)
+        run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state)
+    except ValueError as err:  # an unusable initial state: refused before any step
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 2
     except RunError as err:
         print(f"plugsim: run failed: {err}", file=sys.stderr)
         return 1
@@ -74,6 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
+    p.add_argument("--initial-state", metavar="FROM.nc", default=None,
+                   help="warm start: begin with the grains at the end of another case file "
+                        "(same grains and tube diameter) instead of an empty tube")
     p.set_defaults(func=_run)
     p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
     p.set_defaults(func=_bench)

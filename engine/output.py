@@ -85,6 +85,19 @@ class Recorder:
             ds = ds.merge(self._snapshot_dataset())
         return ds
 
+    @staticmethod
+    def final_state(sim) -> xr.Dataset:
+        """Every grain in the tube at the end of the run (float64), the start of a warm run."""
+        xyz = ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})
+        return xr.Dataset(
+            {"final_position": (("final_grain", "xyz"), sim.positions.copy(), {
+                "units": "m", "long_name": "grain centre at the end of the run"}),
+             "final_velocity": (("final_grain", "xyz"), sim.velocities.copy(), {
+                 "units": "m s-1", "long_name": "grain velocity at the end of the run"}),
+             "final_angular_velocity": (("final_grain", "xyz"), sim.angular_velocities.copy(), {
+                 "units": "rad s-1", "long_name": "grain angular velocity at the end of the run"})},
+            coords={"xyz": xyz})
+
     def _snapshot_dataset(self) -> xr.Dataset:
         """Snapshots as a CF contiguous ragged array (sample dimension `grain`)."""
         times = np.array([s[0] for s in self.snapshots], dtype=float)

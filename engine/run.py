@@ -94,10 +94,32 @@ def _load_checkpoint(path: Path, digest: str):
     return state["sim"], state["recorder"]
 
 
-def run_case(case: Case, out: str | Path, quiet: bool = True) -> Path:
-    """Run `case` from an empty tube (or its checkpoint) and write the case file `out`."""
+def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions, velocities, angular velocities of the grains at the end of case file `path`, for
+    a warm start of `case`; grains beyond case's tube length are left out. Raises ValueError
+    (naming the file and the mismatch) when the grains or the tube cross-section differ."""
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        if "final_position" not in ds:
+            raise ValueError(f"initial state {path}: no final_position (written by plugsim >= 0.2)")
+        for attr, key in (("tube_diameter", "tube.diameter"), ("particle_diameter", "particles.diameter"),
+                          ("particle_density", "particles.density")):
+            if not math.isclose(float(ds.attrs[attr]), case[key], rel_tol=1e-9):
+                raise ValueError(f"initial state {path}: {key} = {float(ds.attrs[attr]):g} there, "
+                                 f"{case[key]:g} here; a warm start needs the same grains and tube cross-section")
+        pos, vel, omg = (ds[name].values.astype(float) for name in
+                         ("final_position", "final_velocity", "final_angular_velocity"))
+    keep = pos[:, 0] <= case["tube.length"]
+    return pos[keep], vel[keep], omg[keep]
+
+
+def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None) -> Path:
+    """Run `case` from an empty tube, or from the grains at the end of the case file
+    `initial_state` (warm start), or from its checkpoint, and write the case file `out`."""
     out = Path(out)
-    digest = case_digest(case)
+    start = read_initial_state(initial_state, case) if initial_state else None
+    digest = case_digest(case) + (f":{Path(initial_state).resolve()}" if initial_state else "")
     ckpt = checkpoint_path(out)
     resumed = _load_checkpoint(ckpt, digest)
     if resumed:
@@ -105,6 +127,9 @@ def run_case(case: Case, out: str | Path, quiet: bool = True) -> Path:
         log.info("resuming %s from t = %.3f s", out, sim.time)
     else:
         sim, recorder = Simulation(case), Recorder(case)
+        if start is not None:
+            sim.add_particles(*start)
+            log.info("warm start from %s: %d grains", initial_state, len(start[0]))
         recorder.sample(sim)
     log.info("case %s: dt = %.3g s, %d gas nodes, feed %.3g kg/h, until %s", out.name, sim.dt,
              case["gas.nodes_x"] * case["gas.nodes_y"] * case["gas.nodes_z"] if case["gas.enabled"] else 0,
@@ -112,7 +137,8 @@ def run_case(case: Case, out: str | Path, quiet: bool = True) -> Path:
     interval, duration = case["output.interval"], case["run.duration"]
     frames = int(round(duration / interval))
     progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
-    last_save = time.monotonic()
+    last_save = started = time.monotonic()
+    cpu_started = time.process_time()
     reason, window = "duration", None
     try:
         for _ in range(len(recorder.times) - 1, frames):
@@ -134,10 +160,20 @@ def run_case(case: Case, out: str | Path, quiet: bool = True) -> Path:
         progress.close()
     if case["run.until_steady"] and window is None:
         reason = "max_duration"
+    wall = time.monotonic() - started
     extra = {"stop_reason": reason, "time_step": sim.dt,
+             # wall time of this process's part of the run (after a resume: since the resume)
+             "wall_time_s": wall, "resumed": int(bool(resumed)),
+             # CPU time of the same part: the cost measure of the work-precision study (less
+             # sensitive than wall time to other jobs sharing the machine)
+             "cpu_time_s": time.process_time() - cpu_started,
+             "initial_state": str(initial_state or ""),
+             "initial_particles": 0 if start is None else len(start[0]),
+             # mass in the tube = initial_mass + mass_in - mass_out
+             "initial_mass": 0.0 if start is None else len(start[0]) * sim.model.mass,
              "steady_start": window[0] if window else math.nan,
              "steady_end": window[1] if window else math.nan}
-    write_atomically(recorder.dataset(global_attributes(case, extra)), out)
+    write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim)), out)
     if ckpt.exists():
         ckpt.unlink()
     log.info("wrote %s (%s, t = %.3f s)", out, reason, sim.time)

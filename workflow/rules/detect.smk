@@ -12,7 +12,7 @@ rule detect:
         summary="results/summaries/{sweep}/{point}.json",
     params:
         threshold=config["analysis"]["threshold"],
-        position=config["analysis"]["position"],
+        position=lambda wc: SWEEPS[wc.sweep].get("position", config["analysis"]["position"]),
         sweep=lambda wc: wc.sweep,
         point=lambda wc: wc.point,
         parameters=lambda wc: POINTS[wc.sweep][wc.point],

@@ -35,6 +35,9 @@ def main(smk) -> None:
                     "parameters": smk.params.get("parameters") or {},
                     "case_file": str(smk.input.case),
                     "stop_reason": ds.attrs.get("stop_reason", ""),
+                    "wall_time_s": float(ds.attrs.get("wall_time_s", float("nan"))),
+                    "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
+                    "time_step": float(ds.attrs.get("time_step", float("nan"))),
                     "simulated_time": float(seconds(ds["time"].values)[-1]),
                     "n_slugs": int(slugs["slug_id"].nunique()) if len(slugs) else 0,
                     "vertical": bool(float(ds.attrs.get("inclination_deg", 0.0)) >= 45.0)})

@@ -1,0 +1,50 @@
+"""Work-precision: the error of a case's observables against a converged reference, and its cost.
+
+A study varies one numerical knob (time step, stiffness, gas grid, gas sub-stepping) over cases
+that are otherwise equal; the case at the most accurate value is the reference. The observables
+are statistical (time means over a fluctuating flow), so every error comes with the noise it would
+show by chance: differences below about two standard errors are not resolved.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+# observable -> its standard-error column in a case summary (analysis.curves.case_summary)
+OBSERVABLES = {"pressure_drop": "pressure_drop_sem", "slug_velocity": "slug_velocity_sem",
+               "slug_length": "slug_length_sem"}
+RESOLVED = 2.0  # an error counts as resolved above this many combined standard errors
+
+
+def relative_errors(summaries: pd.DataFrame, parameter: str, reference) -> pd.DataFrame:
+    """One row per case of a knob sweep, sorted by the knob's value.
+
+    Columns: `value` (the knob), `wall_time_s`, `cpu_time_s` (the cost), `is_reference`, and for each observable q:
+    q, q_sem, q_error = |q - q_ref| / |q_ref|, q_noise = sqrt(sem^2 + sem_ref^2) / |q_ref| (the
+    relative difference one standard error of chance produces) and q_resolved = error > 2 noise.
+    The reference row has error 0. Raises ValueError if no row has the reference value.
+    """
+    values = summaries[parameter].to_numpy(dtype=float)
+    is_ref = np.isclose(values, float(reference), rtol=1e-9, atol=0.0)
+    if is_ref.sum() != 1:
+        raise ValueError(f"{parameter}: expected one case at the reference value {reference}, "
+                         f"found {int(is_ref.sum())} among {sorted(values)}")
+    ref = summaries.loc[is_ref].iloc[0]
+    nan = pd.Series(np.nan, index=summaries.index)
+    out = pd.DataFrame({"value": values, "is_reference": is_ref,
+                        "wall_time_s": summaries.get("wall_time_s", nan).to_numpy(dtype=float),
+                        "cpu_time_s": summaries.get("cpu_time_s", nan).to_numpy(dtype=float)})
+    for q, sem in OBSERVABLES.items():
+        x = summaries[q].to_numpy(dtype=float) if q in summaries else np.full(len(values), np.nan)
+        s = summaries[sem].to_numpy(dtype=float) if sem in summaries else np.full(len(values), np.nan)
+        scale = abs(float(ref.get(q, np.nan)))
+        out[q], out[f"{q}_sem"] = x, s
+        out[f"{q}_error"] = np.abs(x - float(ref.get(q, np.nan))) / scale
+        out[f"{q}_noise"] = np.sqrt(s ** 2 + float(ref.get(sem, np.nan)) ** 2) / scale
+        out[f"{q}_resolved"] = out[f"{q}_error"] > RESOLVED * out[f"{q}_noise"]
+        out.loc[is_ref, [f"{q}_error", f"{q}_resolved"]] = [0.0, False]
+    out.insert(0, "parameter", parameter)
+    out.attrs["units"] = {"pressure_drop": "Pa m-1", "slug_velocity": "m s-1", "slug_length": "m",
+                          "wall_time_s": "s", "cpu_time_s": "s"}
+    return out.sort_values("value").reset_index(drop=True)

@@ -1,0 +1,46 @@
+"""Work-precision errors on summaries whose answer is known."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from analysis.plots import work_precision
+from analysis.precision import relative_errors
+
+
+def summaries():
+    # knob 0.1 is the reference; 0.2 is 10 % off in pressure drop with 1 % standard errors (resolved),
+    # 0.4 is 1 % off with the same errors (within sqrt(2) standard errors: not resolved)
+    return pd.DataFrame({
+        "numerics.time_step_fraction": [0.4, 0.1, 0.2],
+        "pressure_drop": [1010.0, 1000.0, 1100.0], "pressure_drop_sem": [10.0, 10.0, 10.0],
+        "slug_velocity": [0.30, 0.30, 0.36], "slug_velocity_sem": [0.003, 0.003, 0.003],
+        "slug_length": [0.05, 0.05, 0.05], "slug_length_sem": [np.nan, 0.001, 0.001],
+        "wall_time_s": [10.0, 40.0, 20.0], "cpu_time_s": [9.0, 38.0, 19.0]})
+
+
+def test_relative_errors_against_the_reference():
+    table = relative_errors(summaries(), "numerics.time_step_fraction", 0.1)
+    assert list(table["value"]) == [0.1, 0.2, 0.4]  # sorted by the knob
+    ref, half, quarter = table.iloc[0], table.iloc[1], table.iloc[2]
+    assert ref["is_reference"] and ref["pressure_drop_error"] == 0 and not ref["pressure_drop_resolved"]
+    assert half["pressure_drop_error"] == pytest.approx(0.10)
+    assert half["pressure_drop_noise"] == pytest.approx(np.sqrt(2) * 0.01)
+    assert half["pressure_drop_resolved"] and half["slug_velocity_resolved"]
+    assert quarter["pressure_drop_error"] == pytest.approx(0.01) and not quarter["pressure_drop_resolved"]
+    assert np.isnan(quarter["slug_length_noise"])  # an unknown error stays unknown
+    assert quarter["cpu_time_s"] == 9.0
+
+
+def test_missing_reference_is_refused():
+    with pytest.raises(ValueError, match="reference value 0.3"):
+        relative_errors(summaries(), "numerics.time_step_fraction", 0.3)
+
+
+def test_work_precision_figure_has_units_and_log_axes():
+    table = relative_errors(summaries(), "numerics.time_step_fraction", 0.1)
+    fig = work_precision([table], {"numerics.time_step_fraction": 0.2})
+    axes = fig.axes
+    assert len(axes) == 3
+    assert all(ax.get_xscale() == "log" and ax.get_yscale() == "log" for ax in axes)
+    assert "CPU time" in axes[0].get_xlabel() and "(s" in axes[0].get_xlabel()

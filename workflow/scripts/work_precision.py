@@ -1,0 +1,38 @@
+"""Rule work_precision: error against wall time for each numerical knob (table + figure).
+
+Standalone (params as YAML):
+    python workflow/scripts/work_precision.py --output table=/tmp/wp.csv --output png=/tmp/wp.png \
+        --params 'studies={wp_time_step: {parameter: numerics.time_step_fraction, reference: 0.0125,
+                  default: 0.05, summaries: [results/summaries/wp_time_step/...json, ...]}}'
+"""
+
+import pandas as pd
+
+from _helpers import read_json, save_figure, setup_logging, snakemake_or_cli, write_table
+
+
+def main(smk) -> None:
+    log = setup_logging(smk)
+    from analysis.plots import work_precision
+    from analysis.precision import relative_errors
+
+    tables, defaults = [], {}
+    for sweep, study in smk.params.studies.items():
+        rows = pd.DataFrame([read_json(path) for path in study["summaries"]])
+        table = relative_errors(rows, study["parameter"], study["reference"])
+        table.insert(0, "sweep", sweep)
+        table["is_default"] = table["value"].sub(float(study["default"])).abs() <= 1e-9 * abs(float(study["default"]))
+        tables.append(table)
+        defaults[study["parameter"]] = study["default"]
+        for _, row in table.iterrows():
+            log.info("%s = %g: cpu %.0f s, dp error %.3f (noise %.3f), velocity error %.3f, length error %.3f",
+                     study["parameter"], row["value"], row["cpu_time_s"], row["pressure_drop_error"],
+                     row["pressure_drop_noise"], row["slug_velocity_error"], row["slug_length_error"])
+    table = pd.concat(tables, ignore_index=True)
+    table.attrs["units"] = tables[0].attrs["units"]
+    write_table(table, smk.output.table)
+    save_figure(work_precision(tables, defaults), smk.output.png, smk.output.get("pdf"))
+
+
+if __name__ == "__main__":
+    main(snakemake_or_cli(globals(), "work_precision"))
