@@ -59,7 +59,9 @@ REPO = Path(__file__).resolve().parents[1]
 BASES = {"horizontal": REPO / "config/cases/horizontal.yaml", "vertical": REPO / "config/cases/vertical.yaml"}
 # Short and cheap: a 3.5 cm tube keeps the 3.5 mm gas cells of the 52.5 cm default with 10 nodes.
 COMMON = {"tube.length": 0.035, "gas.nodes_x": 10, "run.checkpoint_interval": 0.0}
-SAMPLES_PER_FRAME = 10      # independent checks of the every-step guarantees per output interval
+MONITORS_PER_FRAME = 50     # reads of the engine's own overlap per output interval (0.2 ms)
+CHECKS_EVERY = 5            # independent checks every 5th read: 10 per output interval
+HEATING_FACTOR = 10.0       # kinetic energy per grain above this multiple of the smallest-dt run: heating
 MASS_TOLERANCE = 1e-9       # of one grain's mass: the books are integer counts times the grain mass
 OUTCOMES = ("ran", "refused", "stopped", "SILENT", "crashed")
 BAD = ("SILENT", "crashed")
@@ -92,6 +94,7 @@ class StressCase:
 AXES: dict[str, tuple[str, str]] = {
     "time step, horizontal": ("time step Δt / t_c (contact times)", "log"),
     "time step, packed column": ("time step Δt / t_c (contact times)", "log"),
+    "time step, packed column, μ = μ_w = 1": ("time step Δt / t_c (contact times)", "log"),
     "time step, undamped e = 1, γ_t = 0": ("time step Δt / t_c (contact times)", "log"),
     "superficial velocity": ("gas.superficial_velocity v_s (m/s)", "symlog"),
     "viscosity": ("gas.viscosity η (Pa s)", "log"),
@@ -103,6 +106,7 @@ AXES: dict[str, tuple[str, str]] = {
 
 PACKED = {"gas.enabled": False, "feed.mass_flow_kg_h": 9.95, "feed.entry_velocity": 0.16}
 UNDAMPED = {"particles.restitution": 1.0, "wall.restitution": 1.0, "particles.tangential_damping": 0.0}
+FRICTION_1 = {"particles.friction": 1.0, "wall.friction": 1.0}
 HUGE_DRAG = {"gas.superficial_velocity": 20.0, "gas.viscosity": 1e-3}
 FEED_50 = {"feed.mass_flow_kg_h": 50.0, "feed.entry_velocity": 0.8}
 
@@ -117,10 +121,14 @@ def stress_cases() -> list[StressCase]:
         add(StressCase("time step, horizontal", f"{f:g}", "horizontal",
                        {"numerics.time_step_fraction": f}, x=f, reduced=f in (0.05, 0.5)))
     # A column pushed up by a dense feed with the gas off: every grain in contact, the stiffest modes.
-    for f in (0.02, 0.05, 0.1, 0.2, 0.3, 0.32, 0.5):
+    for f in (0.02, 0.05, 0.1, 0.2, 0.3, 0.31, 0.32, 0.5):
         add(StressCase("time step, packed column", f"{f:g}", "vertical",
-                       {**PACKED, "numerics.time_step_fraction": f}, duration=0.5, x=f, reduced=f == 0.3))
-    for f in (0.1, 0.3, 0.45, 0.55, 0.6, 0.63, 0.65):
+                       {**PACKED, "numerics.time_step_fraction": f}, x=f, reduced=f == 0.3))
+    # The same column with the friction of the papers' vertical friction sweep at its top (μ = 1).
+    for f in (0.05, 0.1, 0.2, 0.25, 0.3, 0.32):
+        add(StressCase("time step, packed column, μ = μ_w = 1", f"{f:g}", "vertical",
+                       {**PACKED, **FRICTION_1, "numerics.time_step_fraction": f}, x=f))
+    for f in (0.1, 0.3, 0.45, 0.5, 0.55, 0.6, 0.63, 0.65):
         add(StressCase("time step, undamped e = 1, γ_t = 0", f"{f:g}", "vertical",
                        {**UNDAMPED, "numerics.time_step_fraction": f}, x=f, reduced=f == 0.6))
     for v in (0.0, 0.1, 1.0, 5.0, 10.0, 20.0):
@@ -129,6 +137,7 @@ def stress_cases() -> list[StressCase]:
     for eta in (1e-5, 6.73e-5, 1e-3):
         add(StressCase("viscosity", f"{eta:g}", "horizontal", {"gas.viscosity": eta}, x=eta))
     for label, ov in [("μ = 0", {"particles.friction": 0.0, "wall.friction": 0.0}),
+                      ("μ = 1", FRICTION_1),
                       ("e = 0.99", {"particles.restitution": 0.99, "wall.restitution": 0.99}),
                       ("e = 1", {"particles.restitution": 1.0, "wall.restitution": 1.0}),
                       ("μ = 0, e = 1", {"particles.friction": 0.0, "wall.friction": 0.0,
@@ -160,6 +169,14 @@ def stress_cases() -> list[StressCase]:
              {"gas.superficial_velocity": 20.0, "particles.friction": 0.0, "wall.friction": 0.0,
               "particles.restitution": 0.99, "wall.restitution": 0.99, "numerics.time_step_fraction": 0.3}, 1.0, False),
             ("50 kg/h, Δt 0.3 (V)", "vertical", {**FEED_50, "numerics.time_step_fraction": 0.3}, 0.5, False),
+            ("50 kg/h, gas off, Δt 0.3 (V)", "vertical",
+             {**FEED_50, "gas.enabled": False, "numerics.time_step_fraction": 0.3}, 0.5, False),
+            # without the tangential dashpot the limit is the damped pair's, 0.478 t_c at e = 0.5
+            ("γ_t 0, packed, Δt 0.45 (V)", "vertical",
+             {**PACKED, "particles.tangential_damping": 0.0, "numerics.time_step_fraction": 0.45}, 1.0, False),
+            # frictionless, but the tangential-dashpot limit still applies: refused
+            ("μ 0, Δt 0.4 (H)", "horizontal",
+             {"particles.friction": 0.0, "wall.friction": 0.0, "numerics.time_step_fraction": 0.4}, 1.0, False),
             ("undamped, μ 0, 50 kg/h, gas off, Δt 0.6 (V)", "vertical",
              {**UNDAMPED, **FEED_50, "particles.friction": 0.0, "wall.friction": 0.0, "gas.enabled": False,
               "numerics.time_step_fraction": 0.6}, 0.5, False),
@@ -275,15 +292,24 @@ def first_line(err: BaseException) -> str:
     return text.splitlines()[0] if text else type(err).__name__
 
 
-def run_stress_case(spec: StressCase, samples_per_frame: int = SAMPLES_PER_FRAME) -> dict[str, Any]:
-    """Run one stress case and classify it; returns its table row (a dict)."""
+def run_stress_case(spec: StressCase, monitors_per_frame: int = MONITORS_PER_FRAME,
+                    checks_every: int = CHECKS_EVERY) -> dict[str, Any]:
+    """Run one stress case and classify it; returns its table row (a dict).
+
+    Each output frame is advanced in `monitors_per_frame` pieces; after each piece the engine's own
+    overlap of the last force evaluation is read (cheap), and after every `checks_every`-th piece
+    the independent checks run. After the last piece of a frame comes run_case's frame check
+    (engine.run._check_health), then the full independent checks. An overlap past the bound that the
+    engine does not stop on, or a failed independent check, makes the case SILENT (the first such
+    event is the reason); the run then goes on to its end so that a later stop is recorded too.
+    """
     row: dict[str, Any] = {"axis": spec.axis, "case": spec.label, "base": spec.base,
                            "overrides": spec.overrides_text(), "duration_s": spec.duration,
                            "outcome": "", "reason": "", "checks": "", "wall_s": 0.0, "steps": 0,
                            "time_step_s": math.nan, "time_step_over_tc": math.nan, "stable_over_tc": math.nan,
                            "n_particles": math.nan, "pressure_drop_Pa": math.nan,
                            "max_overlap_over_d": math.nan, "max_overlap_sampled_over_d": math.nan,
-                           "max_speed_m_s": math.nan, "notes": ""}
+                           "max_speed_m_s": math.nan, "max_kinetic_energy_per_grain_J": math.nan, "notes": ""}
     start = time.perf_counter()
     try:
         case = build_case(spec)
@@ -301,61 +327,95 @@ def run_stress_case(spec: StressCase, samples_per_frame: int = SAMPLES_PER_FRAME
                stable_over_tc=model.stable_time_step / model.contact_time)
     interval = case["output.interval"]
     per_frame = int(round(interval / sim.dt))
-    bounds = np.linspace(0, per_frame, min(samples_per_frame, per_frame) + 1).round().astype(int)
-    chunks = [int(b) for b in np.diff(bounds) if b > 0]
+    bounds = np.linspace(0, per_frame, min(monitors_per_frame, per_frame) + 1).round().astype(int)
+    pieces = [int(b) for b in np.diff(bounds) if b > 0]
     frames = int(round(spec.duration / interval))
-    sampled, max_pressure, notes = 0.0, 0.0, []
-    outcome, reason, checks = "ran", "", {}
+    sampled = max_pressure = max_kinetic = 0.0
+    silent: list[str] = []   # the first silent event (later ones are not needed)
+    outcome, reason = "ran", ""
+
+    def note_silent(what: str) -> None:
+        if not silent:
+            silent.append(f"{what} at t = {sim.time:.4f} s and the engine carried on")
+
     try:
         for _ in range(frames):
-            for k, steps in enumerate(chunks):
+            for k, steps in enumerate(pieces):
                 sim.advance(steps * sim.dt)
-                if k == len(chunks) - 1:
+                max_kinetic = max(max_kinetic, sim.kinetic_energy / max(sim.n_particles, 1))
+                if k == len(pieces) - 1:
                     break  # the frame end: the engine's own frame check comes first
-                state = state_of(sim)
-                quick, measures = check_state(state, full=False)
-                sampled = max(sampled, measures["max_overlap_over_d"])
-                max_pressure = max(max_pressure, measures["max_pressure_over_P0"])
-                if failed(quick):
-                    raise _Silent(f"{', '.join(failed(quick))} failed at t = {sim.time:.4f} s "
-                                  f"while the engine reported no failure")
+                engine_overlap = sim.max_overlap / d
+                sampled = max(sampled, engine_overlap)
+                if engine_overlap > MAX_OVERLAP:
+                    note_silent(f"overlap {engine_overlap:.3f} d > {MAX_OVERLAP} d (engine's own value, "
+                                f"between output frames)")
+                if (k + 1) % checks_every == 0:
+                    quick, measures = check_state(state_of(sim), full=False)
+                    sampled = max(sampled, measures["max_overlap_over_d"])
+                    max_pressure = max(max_pressure, measures["max_pressure_over_P0"])
+                    if measures["max_overlap_over_d"] > MAX_OVERLAP:
+                        note_silent(f"overlap {measures['max_overlap_over_d']:.3f} d > {MAX_OVERLAP} d "
+                                    f"(between output frames)")
+                    if failed(quick):
+                        note_silent(f"check {', '.join(failed(quick))} failed (between output frames)")
             _check_health(sim)  # exactly what run_case does after every frame
             checks, measures = check_state(state_of(sim))
             sampled = max(sampled, measures["max_overlap_over_d"])
             max_pressure = max(max_pressure, measures["max_pressure_over_P0"])
             if failed(checks):
-                raise _Silent(f"{', '.join(failed(checks))} failed at t = {sim.time:.4f} s "
-                              f"while the engine reported no failure")
+                note_silent(f"check {', '.join(failed(checks))} failed at a frame end")
     except (SimulationError, RunError) as err:
         outcome, reason = "stopped", first_line(err)
-    except _Silent as err:
-        outcome, reason = "SILENT", str(err)
     except Exception as err:  # noqa: BLE001
         outcome, reason = "crashed", f"{type(err).__name__}: {first_line(err)}"
     row["wall_s"] = time.perf_counter() - start
     final, measures = check_state(state_of(sim))
     if outcome == "ran" and failed(final):
-        outcome, reason = "SILENT", f"{', '.join(failed(final))} failed in the final state"
-    if outcome == "ran":
+        note_silent(f"check {', '.join(failed(final))} failed in the final state")
+    if silent:
+        later = {"ran": "", "stopped": f"; later stopped by the engine: {reason}",
+                 "crashed": f"; later crashed: {reason}"}[outcome]
+        outcome, reason = ("crashed" if outcome == "crashed" else "SILENT"), silent[0] + later
+    elif outcome == "ran":
         reason = f"finished t = {sim.time:.3f} s"
     row.update(outcome=outcome, reason=reason, steps=sim._steps, n_particles=sim.n_particles,
                pressure_drop_Pa=sim.pressure_drop if case["gas.enabled"] else 0.0,
                max_overlap_over_d=measures["max_overlap_over_d"], max_overlap_sampled_over_d=sampled,
-               max_speed_m_s=measures["max_speed"],
+               max_speed_m_s=measures["max_speed"], max_kinetic_energy_per_grain_J=max_kinetic,
                checks=", ".join(f"{k} {'ok' if v else 'FAILED'}" for k, v in final.items()))
-    # Notes: what the engine does not promise to catch but a reader should know.
-    if math.isfinite(sampled) and sampled > MAX_OVERLAP and outcome == "ran":
-        notes.append(f"overlap {sampled:.2f} d between frames (the run guard checks at frame ends)")
-    travel = measures["max_speed"] * sim.dt / d
-    if travel > TRAVEL_NOTE:
-        notes.append(f"v_max dt = {travel:.2f} d: one step can carry a pair past the overlap bound")
-    if max_pressure > PRESSURE_NOTE:
-        notes.append(f"max |P'| = {max_pressure:.2f} P0: the linearised gas equation (P' << P0) is strained")
-    if case["gas.enabled"] and not sim.feed.enabled and sim.n_particles == 0:
-        hp = 32 * case["gas.viscosity"] * case["gas.superficial_velocity"] * case["tube.length"] / case["tube.diameter"] ** 2
-        notes.append(f"empty tube: dp = {sim.pressure_drop:.4g} Pa, Hagen-Poiseuille {hp:.4g} Pa")
+    # Notes on finished runs: what a reader should know although no check failed.
+    notes = []
+    if outcome in ("ran", "SILENT"):
+        travel = measures["max_speed"] * sim.dt / d
+        if travel > TRAVEL_NOTE:
+            notes.append(f"v_max dt = {travel:.2f} d: one step can carry a pair past the overlap bound")
+        if max_pressure > PRESSURE_NOTE:
+            notes.append(f"max |P'| = {max_pressure:.2f} P0: the linearised gas equation (P' << P0) is strained")
+        if case["gas.enabled"] and not sim.feed.enabled and sim.n_particles == 0:
+            hp = (32 * case["gas.viscosity"] * case["gas.superficial_velocity"] * case["tube.length"]
+                  / case["tube.diameter"] ** 2)
+            notes.append(f"empty tube: dp = {sim.pressure_drop:.4g} Pa, Hagen-Poiseuille {hp:.4g} Pa")
     row["notes"] = "; ".join(notes)
     return row
+
+
+def note_heating(rows: list[dict], factor: float = HEATING_FACTOR) -> None:
+    """On the time-step axes, note runs whose largest kinetic energy per grain exceeds `factor` times
+    that of the axis's smallest time step that finished (the same case otherwise): numerical heating."""
+    for axis in {r["axis"] for r in rows if r["axis"].startswith("time step")}:
+        done = [r for r in rows if r["axis"] == axis and r["outcome"] in ("ran", "SILENT")]
+        if len(done) < 2:
+            continue
+        ref = min(done, key=lambda r: r["time_step_over_tc"])
+        if not ref["max_kinetic_energy_per_grain_J"] > 0:
+            continue
+        for r in done:
+            ratio = r["max_kinetic_energy_per_grain_J"] / ref["max_kinetic_energy_per_grain_J"]
+            if r is not ref and ratio > factor:
+                text = (f"numerical heating: kinetic energy per grain up to {ratio:.0f}x that at "
+                        f"Δt = {ref['time_step_over_tc']:.2f} t_c")
+                r["notes"] = f"{text}; {r['notes']}" if r["notes"] else text
 
 
 class _Silent(RuntimeError):
@@ -375,7 +435,8 @@ def warm_up() -> float:
 # ---- outputs ----------------------------------------------------------------------------------
 COLUMNS = ["axis", "case", "base", "overrides", "outcome", "reason", "checks", "wall_s", "steps",
            "duration_s", "time_step_s", "time_step_over_tc", "stable_over_tc", "n_particles",
-           "pressure_drop_Pa", "max_overlap_over_d", "max_overlap_sampled_over_d", "max_speed_m_s", "notes"]
+           "pressure_drop_Pa", "max_overlap_over_d", "max_overlap_sampled_over_d", "max_speed_m_s",
+           "max_kinetic_energy_per_grain_J", "notes"]
 
 
 def headline(rows: list[dict]) -> str:
@@ -509,6 +570,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f"{row['outcome']:>8}  {row['wall_s']:6.1f} s  {spec.axis} / {spec.label}: {row['reason']}"
               + (f"  [{row['notes']}]" if row["notes"] else ""), file=sys.stderr, flush=True)
+    note_heating(rows)
     total = time.perf_counter() - started
     attrs = {"headline": headline(rows), "total_wall_s": round(total, 1), "warm_up_s": round(warm, 1),
              "reduced": args.reduced, "overlap_bound_over_d": MAX_OVERLAP,

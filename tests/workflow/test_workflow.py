@@ -82,6 +82,23 @@ def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
     assert "results/figures/X01.pdf" in out  # and as a figure of one's own
 
 
+def test_warm_started_sweep_depends_on_its_source_case(tmp_path):
+    work = scratch(tmp_path)
+    (work / "config/warm.yaml").write_text(yaml.safe_dump({"sweeps": {"h_warm": {
+        "base": "config/cases/horizontal.yaml",
+        "overrides": {"run.duration": 20.0, "run.steady_settle": 3.0},
+        "warm_start": {"sweep": "h_default"},
+        "parameters": {"gas.viscosity": [4.5e-5, 8.5e-5]}}}}))
+    run = snakemake("results/curves/h_warm.csv", "-n", "--cores", "2", "--configfile", "config/warm.yaml",
+                    cwd=work)
+    assert run.returncode == 0, run.stderr + run.stdout
+    jobs = re.findall(r"rule simulate:\n\s+input: ([^\n]*)\n\s+output: ([^\n]*)", run.stdout + run.stderr)
+    inputs = {out.strip(): inp for inp, out in jobs}
+    for eta in ("4.5e-05", "8.5e-05"):
+        assert "results/cases/h_default/base.nc" in inputs[f"results/cases/h_warm/gas.viscosity~{eta}.nc"]
+    assert "results/cases/" not in inputs["results/cases/h_default/base.nc"]  # the source runs cold
+
+
 def test_typo_in_a_case_key_fails_before_any_job(tmp_path):
     work = scratch(tmp_path)
     (work / "config/typo.yaml").write_text(yaml.safe_dump({"sweeps": {"bad": {

@@ -128,6 +128,19 @@ def _build(sweep, point, overrides):
         raise ValueError(f"config: sweep {sweep!r}, point {point!r}: {err}") from None
 
 
+# warm starts: a sweep's `warm_start` names the case whose final grains start its points (the
+# point that is that case itself runs from an empty tube)
+WARM_SOURCE = {}  # (sweep, point) -> (sweep, point) of the case file it starts from
+for _sweep, _spec in SWEEPS.items():
+    if _spec.get("warm_start"):
+        _src = resolve_ref(_spec["warm_start"], f"sweep {_sweep} warm_start")
+        if SWEEPS[_src[0]].get("warm_start"):
+            raise ValueError(f"config: sweep {_sweep!r} warm-starts from sweep {_src[0]!r}, which is "
+                             "warm-started itself; start from a case that runs from an empty tube")
+        for _point in POINTS[_sweep]:
+            if (_sweep, _point) != _src:
+                WARM_SOURCE[(_sweep, _point)] = _src
+
 DERIVED = ("output.snapshots", "run.until_steady")
 _groups = defaultdict(list)  # identity of the case (without derived keys) -> [(sweep, point)]
 for _sweep, _points in POINTS.items():
@@ -138,7 +151,7 @@ for _sweep, _points in POINTS.items():
                     config.get("all_cases") or {}) and _k not in _points[_point]:
                 _explicit.pop(_k, None)
         _case = _build(_sweep, _point, _explicit)
-        _identity = (SWEEPS[_sweep]["base"], tuple(sorted(
+        _identity = (SWEEPS[_sweep]["base"], WARM_SOURCE.get((_sweep, _point)), tuple(sorted(
             (k, repr(v)) for k, v in _case.items() if k not in DERIVED or k in _explicit)))
         _groups[_identity].append((_sweep, _point))
 
@@ -165,6 +178,15 @@ def all_points():
 def case_nc(sweep, point):
     s, p = CANONICAL[(sweep, point)]
     return f"results/cases/{s}/{p}.nc"
+
+
+def simulate_inputs(wildcards):
+    """Base case YAML, and the case file a warm-started case begins from."""
+    key = wc_key(wildcards)
+    inputs = {"base": SWEEPS[key[0]]["base"]}
+    if key in WARM_SOURCE:
+        inputs["initial_state"] = case_nc(*WARM_SOURCE[key])
+    return inputs
 
 
 def slugs_csv(s, p):

@@ -2,9 +2,10 @@
 
 
 rule simulate:
-    """Run one case from an empty tube: base case YAML + the point's overrides -> case file."""
+    """Run one case: base case YAML + the point's overrides -> case file; from an empty tube, or
+    (sweep `warm_start`) from the grains at the end of another case."""
     input:
-        base=lambda wc: SWEEPS[wc_key(wc)[0]]["base"],
+        unpack(simulate_inputs),
     output:
         case="results/cases/{sweep}/{point}.nc",
     params:

@@ -23,7 +23,10 @@ def main(smk) -> None:
     case = Case.from_yaml(smk.input.base).with_overrides(list(overrides.items()))
     log.info("case %s with overrides %s", smk.input.base, overrides)
     start = time.perf_counter()
-    run_case(case, smk.output.case, quiet=True)
+    initial_state = smk.input.get("initial_state")
+    if initial_state:
+        log.info("warm start from %s", initial_state)
+    run_case(case, smk.output.case, quiet=True, initial_state=initial_state)
     log.info("wrote %s in %.1f s wall", smk.output.case, time.perf_counter() - start)
 
 
