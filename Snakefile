@@ -43,6 +43,8 @@ rule all:
         "results/validation/validation.md",
         "results/benchmarks/engine.json",
         [f"results/benchmarks/work_precision.{e}" for e in ("csv", "png", "pdf") if WORK_PRECISION],
+        [f"results/benchmarks/scale/scale.{e}" for e in ("csv", "md", "png")],
+        [f"results/benchmarks/stability/stability.{e}" for e in ("csv", "md", "png")],
 
 
 rule figures:

@@ -12,24 +12,26 @@ Families of dense packings of N = 10^3 ... 10^5 grains (d = 1.4 mm):
 Every packing is engine.bench's standard dense case generalised (`dense_packing`): stacked ring
 layers (engine.feed.layer_template of the tube's cross-section, 1.02 d apart, each turned by a random
 angle), full layers over a plug from 38 % to 50 % of the length and, elsewhere, the lowest 7/19 of
-each layer (a bed), settled under gravity with the gas off for `SETTLE_TIME`. The tube length is the
+each layer (a bed), settled under gravity with the gas off for SETTLE_TIME = 0.02 s (2.6-2.9
+contacts per grain, walls included; the standard case settled for 0.05 s has 3.2). The tube length is the
 one that gives N grains, so a 7 mm tube of ~3070 grains is the standard case itself (0.525 m), and
 each family keeps the standard case's hold-up per layer. Tubes shorter than 2 cm are skipped.
 
-Each packing is timed through Simulation.advance for a fixed number of steps (median of the
+Each packing is timed through Simulation.advance for a fixed number of steps (median of 5 (3 reduced)
 repeats, which are interleaved across all packings so a load change hits every N alike, after a
 warm-up so that no compile time is counted), with the gas off and with the gas on (defaults:
 v_s = 1 m/s, updated every 10 steps) on a grid of ~3.5 mm cells: gas.nodes_x = round(L / 3.5 mm),
 nodes_y = nodes_z = max(2, round(D / 3.5 mm)). Feed off. One thread (NUMBA_NUM_THREADS=1 unless
 set). Both the wall time and the CPU time of the timing thread are recorded: on a loaded machine the
 wall time includes the time the thread waited for a core; the CPU time is what an idle core would
-take. Memory: peak resident set size (getrusage) of a fresh process that builds the gas-on case and
+take. Memory: peak resident set size (VmHWM) of a fresh process that builds the gas-on case and
 runs 20 steps, and the engine's own arrays (sum of their nbytes).
 
 Writes OUT/scale.csv (one row per packing and gas setting), OUT/scale.md (table, conditions and
 the headline: the largest N, and 7 mm tube length, for which 10 simulated seconds cost at most one
-hour on one core) and OUT/scale.png (log-log cost against N). `--reduced` (CI, ~30 s): N up to
-3000 in the 7 and 14 mm tubes.
+hour on one core) and OUT/scale.png (log-log cost against N). About 6 min on a loaded 2-core
+machine; `--reduced` (CI, ~15 s): N up to 3000 in the 7 and 14 mm tubes. `--replot CSV` rewrites
+the .md and .png from an existing table.
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ BUDGET_WALL = 3600.0                         # ... per hour of wall time on one 
 
 FAMILIES = {"long": 0.007, "wide14": 0.014, "wide28": 0.028}  # tube diameter, m
 FULL = {"families": ("long", "wide14", "wide28"), "grains": (1000, 3000, 10000, 30000, 100000),
-        "repeats": 3, "particle_steps": 4e6}
+        "repeats": 5, "particle_steps": 4e6}
 REDUCED = {"families": ("long", "wide14"), "grains": (1000, 3000), "repeats": 3, "particle_steps": 1e6}
 
 
@@ -181,8 +183,22 @@ def _probe(path: str) -> None:
     state["length"], state["diameter"] = float(state["length"]), float(state["diameter"])
     sim = simulation_from(state, gas=True)
     sim.advance(20 * sim.dt)
-    print(json.dumps({"peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                      "engine_mb": engine_bytes(sim) / 2**20}))
+    print(json.dumps({"peak_rss_mb": peak_rss_mb(), "engine_mb": engine_bytes(sim) / 2**20}))
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process since its exec, MB.
+
+    /proc/self/status VmHWM: getrusage's ru_maxrss would carry over the high-water mark of the
+    parent that forked this process (Linux keeps it across exec), i.e. of the study itself.
+    """
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def peak_memory(state: dict) -> dict:
@@ -308,10 +324,15 @@ def headline(rows: list[dict]) -> list[str]:
                 f"grains{note(wall_x)}, {wall / HOLDUP_7MM:.1f} m.")
         else:
             length = tube_length(int(cpu), diameter / 1e3) if math.isfinite(cpu) else math.nan
-            lines.append(f"{diameter:g} mm tube ({family}), gas on: about {cpu:,.0f} grains{note(cpu_x)} "
+            lines.append(f"- {diameter:g} mm tube ({family}), gas on: about {cpu:,.0f} grains{note(cpu_x)} "
                          f"({length:.2f} m of this study's packing) by CPU time, {wall:,.0f}{note(wall_x)} "
                          f"by wall time.")
     return lines
+
+
+def _spaced(lines: list[str]) -> list[str]:
+    """The headline paragraph, a blank line, then the list of the other families."""
+    return lines[:1] + [""] + lines[1:] if lines and not lines[0].startswith("-") else lines
 
 
 def write_markdown(rows: list[dict], path: Path, meta: dict) -> None:
@@ -320,7 +341,7 @@ def write_markdown(rows: list[dict], path: Path, meta: dict) -> None:
     lines = ["# Scale: cost against the number of grains", "",
              f"{meta['date']}, {meta['machine']}, one thread, {meta['mode']} run; load average (1 min) "
              f"{meta['load_before']:.2f} before and {meta['load_after']:.2f} after the timing on "
-             f"{os.cpu_count()} cores.", "", *headline(rows), "",
+             f"{os.cpu_count()} cores.", "", *_spaced(headline(rows)), "",
              f"Assumption: a typical case needs {BUDGET_SIMULATED:g} s of simulated time (fill + steady "
              f"window), so the budget is {BUDGET_WALL / BUDGET_SIMULATED:g} s of wall time per simulated "
              f"second on one core; the number of grains N at that cost is interpolated log-log between "
@@ -336,15 +357,27 @@ def write_markdown(rows: list[dict], path: Path, meta: dict) -> None:
             f"{r['us_per_step']:.0f} | {r['cpu_us_per_step']:.0f} | {r['particle_steps_per_s']:.3g} | "
             f"{r['wall_s_per_simulated_s']:.1f} | {r['cpu_s_per_simulated_s']:.1f} | {r['peak_rss_mb']:.0f} | "
             f"{r['engine_mb']:.1f} |")
-    lines += ["", "Growth exponents (local log-log slope of wall µs per step against N, consecutive points):", ""]
+    lines += ["", "Growth exponents (local log-log slope of µs per step against N between consecutive "
+              "points; 1 = cost proportional to N), CPU time (wall time):", ""]
     for family in dict.fromkeys(r["family"] for r in rows):
         for gas in ("off", "on"):
-            slopes = ", ".join(f"{s:.2f}" for s in exponents(rows, family, gas))
+            slopes = ", ".join(f"{c:.2f} ({w:.2f})" for c, w in zip(exponents(rows, family, gas, "cpu_us_per_step"),
+                                                                exponents(rows, family, gas)))
             lines.append(f"- {family}, gas {gas}: {slopes or '-'}")
+    lines += ["", "Gas cost (wall time per step with the gas on over gas off; the gas grid has ~3.5 mm "
+              "cells, its solve dense (ny nz)² blocks per axial node):", ""]
+    for family in dict.fromkeys(r["family"] for r in rows):
+        ratios = [on["us_per_step"] / off["us_per_step"] for on in rows for off in rows
+                  if on["family"] == off["family"] == family and on["grains"] == off["grains"]
+                  and on["gas"] == "on" and off["gas"] == "off"]
+        grid = next(r["gas_grid"] for r in rows if r["family"] == family and r["gas"] == "on")
+        lines.append(f"- {family} ({grid.split('x', 1)[1]} across): +{statistics.median(ratios) - 1:.0%} "
+                     f"(median over N; {min(ratios) - 1:+.0%} to {max(ratios) - 1:+.0%})")
     lines += ["", "Columns: µs/step wall and CPU are medians over the repeats (interleaved across all "
               "packings); particle-steps/s = N / wall time per step; wall (CPU) s / sim s = time per step "
               "/ time step; peak RSS of a fresh process holding the gas-on case (Python, numba and the "
-              "kernels included); engine = the Simulation's and gas field's numpy arrays.", ""]
+              "kernels included, ~190 MB of it); engine = the numpy arrays the Simulation and its gas field "
+              "allocate (grain arrays sized for a full tube: pages never touched are not resident).", ""]
     path.write_text("\n".join(lines))
 
 
@@ -371,7 +404,7 @@ def plot(rows: list[dict], path: Path) -> None:
     dt = ref["time_step_s"]
     budget = BUDGET_WALL / BUDGET_SIMULATED * dt * 1e6
     ax1.axhline(budget, color="grey", lw=0.8)
-    ax1.text(n_all[0], budget * 1.08, f"{BUDGET_SIMULATED:g} simulated s per wall hour", fontsize=8, color="grey")
+    ax1.text(n_all[0], budget * 0.8, f"{BUDGET_SIMULATED:g} simulated s per wall hour", fontsize=8, color="grey")
     ax1.set(xscale="log", yscale="log", xlabel="grains N", ylabel="wall time per step (µs)",
             title="cost of one time step")
     ax2.set(xscale="log", yscale="log", xlabel="grains N", ylabel="particle-steps per second (1/s)",
@@ -380,7 +413,10 @@ def plot(rows: list[dict], path: Path) -> None:
     ax2.legend(fontsize=7)
     for ax in (ax1, ax2):
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
-    fig.tight_layout()
+    fig.text(0.01, 0.01, f"wall time on one thread, load average {rows[0]['load_before']:.1f}-"
+             f"{rows[0]['load_after']:.1f} on {os.cpu_count()} cores; CPU times and the table: scale.md",
+             fontsize=7, color="grey")
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
     fig.savefig(path, dpi=130)
     plt.close(fig)
 
@@ -395,24 +431,50 @@ def _cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
+def read_csv(path: Path) -> list[dict]:
+    """Rows of a scale.csv, typed as `study` returns them."""
+    import csv
+    ints = {"grains", "steps", "repeats", "grains_after"}
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for row in rows:
+        for k, v in row.items():
+            if k in ints:
+                row[k] = int(v)
+            elif k not in {"family", "gas", "gas_grid"}:
+                row[k] = float(v)
+    return rows
+
+
+def _meta(rows: list[dict], date: datetime.datetime, mode: str) -> dict:
+    return {"date": date.isoformat(timespec="minutes"), "machine": _cpu_model(), "mode": mode,
+            "load_before": rows[0]["load_before"], "load_after": rows[0]["load_after"]}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out-dir", type=Path, default=Path("results/benchmarks/scale"))
     parser.add_argument("--reduced", action="store_true", help="N up to 3000 in 7 and 14 mm tubes (CI)")
+    parser.add_argument("--replot", metavar="CSV", type=Path,
+                        help="only rewrite scale.md and scale.png from an existing scale.csv")
     parser.add_argument("--probe", help=argparse.SUPPRESS)  # internal: memory of one saved state
     args = parser.parse_args(argv)
     if args.probe:
         _probe(args.probe)
+        return 0
+    if args.replot:
+        rows = read_csv(args.replot)
+        date = datetime.datetime.fromtimestamp(args.replot.stat().st_mtime)
+        meta = _meta(rows, date, "full" if max(r["grains"] for r in rows) > 5000 else "reduced")
+        write_markdown(rows, args.out_dir / "scale.md", meta)
+        plot(rows, args.out_dir / "scale.png")
         return 0
     settings = REDUCED if args.reduced else FULL
     start = time.perf_counter()
     rows = study(settings["families"], settings["grains"], settings["repeats"], settings["particle_steps"],
                  log=lambda m: print(m, flush=True))
     args.out_dir.mkdir(parents=True, exist_ok=True)
-    meta = {"date": datetime.datetime.now().isoformat(timespec="minutes"),
-            "machine": _cpu_model(),
-            "mode": "reduced" if args.reduced else "full",
-            "load_before": rows[0]["load_before"], "load_after": rows[0]["load_after"]}
+    meta = _meta(rows, datetime.datetime.now(), "reduced" if args.reduced else "full")
     write_csv(rows, args.out_dir / "scale.csv")
     write_markdown(rows, args.out_dir / "scale.md", meta)
     plot(rows, args.out_dir / "scale.png")

@@ -56,7 +56,7 @@ class Key:
             if too_low or too_high:
                 raise CaseError(
                     f"{self.name} = {value!r} is out of range: allowed {self.allowed()}"
-                    f" ({self.doc.split('.')[0]}, {self.unit})")
+                    f" ({self.doc.split('. ')[0].rstrip('.')}, {self.unit})")
         return value
 
     def _convert(self, value: Any) -> Any:
@@ -118,7 +118,8 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "m_dot cannot be packed at this speed.", low=0.0, low_open=True, high=100.0),
     Key("feed.max_overlap", 0.05, "1",
         "Largest overlap (fraction of d) the feed piston may press into grains ahead before it "
-        "pauses; bounds the push when the tube is blocked.", low=0.0, low_open=True, high=0.5),
+        "pauses; bounds the push when the tube is blocked (below the run guard of 0.2 d).",
+        low=0.0, low_open=True, high=0.15),
     Key("gas.enabled", True, "", "Solve the gas pressure field and apply drag (false: pure grains).",
         kind=bool),
     Key("gas.superficial_velocity", 1.0, "m s-1", "Superficial gas velocity v_s = gas flow / A.",
@@ -140,6 +141,11 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Time step as a fraction of the grain-grain contact time t_c (rounded down to divide "
         "output.interval); refused above the stable limit.",
         low=0.0, low_open=True, high=10.0),
+    Key("numerics.time_step_safety", 0.6, "1",
+        "Fraction of the single-pair stability limit a time step may reach: packed columns have "
+        "faster modes than one pair (the stress sweep, docs/performance.md, saw heating and "
+        "overlaps past 0.2 d from 0.74 of the pair limit); 1 accepts the pair limit itself.",
+        low=0.0, low_open=True, high=1.0),
     Key("numerics.neighbor_skin", 0.15, "1",
         "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "
         "moved half of it).", low=0.0, low_open=True, high=2.0),

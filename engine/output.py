@@ -20,7 +20,8 @@ SERIES = {  # name: (units, long_name)
     "mass_in": ("kg", "cumulative grain mass fed into the tube"),
     "mass_out": ("kg", "cumulative grain mass that left past the outlet"),
     "kinetic_energy": ("J", "translational plus rotational kinetic energy of the grains in the tube"),
-    "max_overlap": ("1", "largest grain-grain or grain-wall overlap, fraction of the grain diameter"),
+    "max_overlap": ("1", "largest grain-grain, grain-wall or grain-feed overlap over the steps of the "
+                         "output interval, fraction of the grain diameter"),
 }
 FIELDS = {
     "porosity": ("1", "slice porosity (grains weighted by their volume in the slice)"),

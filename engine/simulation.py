@@ -41,7 +41,7 @@ class Simulation:
         self._allocate(self._initial_capacity())
         self._n = np.zeros(1, dtype=np.int64)
         self._counters = np.zeros(P.NCOUNTERS, dtype=np.int64)
-        self._diag = np.zeros(2)
+        self._diag = np.zeros(3)  # last max overlap, last max feed overlap, running max (m)
         self._dirty = True        # arrays changed outside the time loop: rebuild + forces first
         self._feed_tail = None    # x of the last feed layer created
 
@@ -198,6 +198,7 @@ class Simulation:
         if seconds < 0:
             raise ValueError(f"advance(seconds={seconds}) needs seconds >= 0")
         remaining = int(round(seconds / self.dt))
+        self._diag[2] = 0.0
         # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
         speed = self._p[P.FEED_SPEED]
         chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
@@ -294,8 +295,9 @@ class Simulation:
 
     @property
     def max_overlap(self) -> float:
-        """Largest grain-grain or grain-wall overlap at the last force evaluation, m."""
-        return float(self._diag[0])
+        """Largest overlap (grain-grain, grain-wall or grain-feed) over the steps of the last
+        advance() call (the last force evaluation if it took none), m."""
+        return float(max(self._diag[0], self._diag[1], self._diag[2]))
 
     def slice_fields(self, width: float) -> dict[str, np.ndarray]:
         """Slice averages over slices of `width` (m) from the inlet (papers §3.2).

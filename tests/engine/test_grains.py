@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from engine import Case, Simulation, SimulationError
+from engine import Case, CaseError, Simulation, SimulationError
 
 D_GRAIN = 1.4e-3
 R_TUBE = 3.5e-3
@@ -261,3 +261,33 @@ def test_wall_stress_of_a_resting_grain_is_its_weight_over_the_wall_area():
     # the grain (at x = 0.05 m, well inside one slice) presses the wall with m g
     expect = sim.model.mass * 9.81 / (math.pi * 2 * R_TUBE * width)
     assert np.nansum(fields["wall_stress"]) == pytest.approx(expect, rel=1e-6)
+
+
+def test_packed_column_margin_on_the_time_step():
+    # e = 1, frictionless: the single-pair limit is 2/omega = (2/pi) t_c = 0.637 t_c. The stress
+    # sweep blew up a packed column at 0.5 t_c, so the default margin (0.6) refuses it ...
+    undamped = ["particles.restitution=1", "wall.restitution=1", "particles.friction=0", "wall.friction=0"]
+    with pytest.raises(CaseError, match=r"time_step_safety = 0.6.*<= 0.382"):
+        Simulation(grain_case(*undamped, "numerics.time_step_fraction=0.5"))
+    # ... and an expert can take the pair limit itself
+    Simulation(grain_case(*undamped, "numerics.time_step_fraction=0.5", "numerics.time_step_safety=1"))
+
+
+def test_tangential_limit_applies_only_with_friction():
+    # The tangential dashpot limit 2(m/7)/gamma_t (0.32 t_c by default) binds at mu = 0.5; without
+    # friction the normal limit (0.50 t_c at e = 0.5) is the only one: 0.25 t_c passes the 0.6 margin.
+    with pytest.raises(CaseError, match="numerics.time_step_fraction <= 0.19"):
+        Simulation(grain_case("numerics.time_step_fraction=0.25"))
+    Simulation(grain_case("numerics.time_step_fraction=0.25", "particles.friction=0", "wall.friction=0"))
+
+
+def test_max_overlap_sees_a_collision_between_frames():
+    # Head-on at 0.1 m/s relative: the grains touch and separate within one advance(); the overlap
+    # at the last force evaluation is 0, but the running maximum keeps the peak, which lies below
+    # the undamped bound v_rel / omega (omega = sqrt(k / m_reduced)).
+    sim = Simulation(grain_case("physics.gravity=0"))
+    sim.add_particles([[0.1, 0, 0], [0.1 + 1.2 * D_GRAIN, 0, 0]], [[0.05, 0, 0], [-0.05, 0, 0]])
+    sim.advance(0.03)
+    assert sim._diag[0] == 0.0  # separated at the end
+    omega = math.sqrt(sim.model.stiffness / (sim.model.mass / 2))
+    assert 0.3 * 0.1 / omega < sim.max_overlap < 0.1 / omega

@@ -158,12 +158,14 @@ def test_until_steady_stops_a_short_real_case_and_records_the_window(tmp_path):
 
 
 def test_numerical_failure_exits_1_with_one_line_and_no_file(tmp_path):
-    # Undamped, frictionless grains at 0.6 t_c: below the single-pair stability limit (0.64 t_c) but
-    # unstable in a packed column, whose stiffest modes are higher; the guard must catch it.
+    # Undamped, frictionless grains at 0.6 t_c: below the single-pair stability limit (0.64 t_c),
+    # accepted only with the safety margin switched off (time_step_safety=1), but unstable in a
+    # packed column, whose stiffest modes are higher; the guard must catch it.
     out = tmp_path / "blow.nc"
     res = plugsim("run", str(ROOT / "config/cases/vertical.yaml"), "--out", str(out), "--quiet",
                   *sum((["--set", s] for s in [
-                      "numerics.time_step_fraction=0.6", "particles.restitution=1", "wall.restitution=1",
+                      "numerics.time_step_fraction=0.6", "numerics.time_step_safety=1",
+                      "particles.restitution=1", "wall.restitution=1",
                       "particles.tangential_damping=0", "run.duration=1", "tube.length=0.03",
                       "gas.nodes_x=8"]), []))
     assert res.returncode == 1

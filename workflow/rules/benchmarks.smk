@@ -55,3 +55,58 @@ onsuccess:
     import timings  # workflow/scripts/timings.py
 
     timings.collect("results/benchmarks/jobs", "results/benchmarks/timings.csv")
+
+
+rule scale:
+    """Cost against the number of grains (benchmarks/scale.py): dense packings of 10^3 to 10^5 grains
+    in longer 7 mm and in wider (14, 28 mm) tubes, gas on and off, one core; up to 3000 grains when
+    config benchmarks.scale_reduced is true."""
+    output:
+        csv="results/benchmarks/scale/scale.csv",
+        md="results/benchmarks/scale/scale.md",
+        png=report("results/benchmarks/scale/scale.png", caption="../report/scale.rst",
+                   category="Benchmarks"),
+    params:
+        python=sys.executable,
+        script=Path(workflow.basedir) / "benchmarks" / "scale.py",  # next to the Snakefile, not the cwd
+        reduced="--reduced" if config.get("benchmarks", {}).get("scale_reduced", False) else "",
+        engine_version=ENGINE_VERSION,  # re-run when the engine changes
+    log:
+        "logs/scale/scale.log",
+    benchmark:
+        "results/benchmarks/jobs/scale/scale.tsv"
+    threads: 1
+    resources:
+        runtime=20,
+        mem_mb=3000,
+    shell:
+        "NUMBA_NUM_THREADS={threads} {params.python} {params.script} --out-dir $(dirname {output.csv}) "
+        "{params.reduced} > {log} 2>&1"
+
+
+rule stability:
+    """Numerical-stability stress sweep (benchmarks/stability.py): short cases at extreme time
+    steps, gas velocities, viscosities, contact laws and feeds, each classified as ran, refused up
+    front or stopped with a reason; the job fails if any case blows up silently. Eight cases when
+    config benchmarks.stability_reduced is true."""
+    output:
+        csv="results/benchmarks/stability/stability.csv",
+        md="results/benchmarks/stability/stability.md",
+        png=report("results/benchmarks/stability/stability.png", caption="../report/stability.rst",
+                   category="Benchmarks"),
+    params:
+        python=sys.executable,
+        script=Path(workflow.basedir) / "benchmarks" / "stability.py",  # next to the Snakefile, not the cwd
+        reduced="--reduced" if config.get("benchmarks", {}).get("stability_reduced", False) else "",
+        engine_version=ENGINE_VERSION,
+    log:
+        "logs/stability/stability.log",
+    benchmark:
+        "results/benchmarks/jobs/stability/stability.tsv"
+    threads: 1
+    resources:
+        runtime=20,
+        mem_mb=2000,
+    shell:
+        "NUMBA_NUM_THREADS={threads} {params.python} {params.script} --out-dir $(dirname {output.csv}) "
+        "{params.reduced} > {log} 2>&1"
