@@ -386,7 +386,8 @@ def run_stress_case(spec: StressCase, monitors_per_frame: int = MONITORS_PER_FRA
                     if measures["max_overlap_over_d"] > MAX_OVERLAP:
                         note_event(f"overlap {measures['max_overlap_over_d']:.3f} d > {MAX_OVERLAP} d "
                                    f"(between output frames)")
-            _check_health(sim)  # exactly what run_case does after every frame
+            _check_health(sim)  # exactly what run_case does after every frame ...
+            sim.reset_max_overlap()  # ... and the next frame's overlap window
             checks, measures = check_state(state_of(sim))
             sampled = max(sampled, measures["max_overlap_over_d"])
             max_pressure = max(max_pressure, measures["max_pressure_over_P0"])

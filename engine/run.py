@@ -145,6 +145,7 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
             sim.advance(interval)
             recorder.sample(sim)
             _check_health(sim)
+            sim.reset_max_overlap()  # the frame's largest overlap is recorded and checked
             progress.update(sim, interval)
             if case["run.until_steady"]:
                 window = steady_window(recorder, case)

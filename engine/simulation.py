@@ -198,7 +198,6 @@ class Simulation:
         if seconds < 0:
             raise ValueError(f"advance(seconds={seconds}) needs seconds >= 0")
         remaining = int(round(seconds / self.dt))
-        self._diag[2] = 0.0
         # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
         speed = self._p[P.FEED_SPEED]
         chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
@@ -295,9 +294,13 @@ class Simulation:
 
     @property
     def max_overlap(self) -> float:
-        """Largest overlap (grain-grain, grain-wall or grain-feed) over the steps of the last
-        advance() call (the last force evaluation if it took none), m."""
+        """Largest overlap (grain-grain, grain-wall or grain-feed) over every step since the start
+        or the last reset_max_overlap(), m."""
         return float(max(self._diag[0], self._diag[1], self._diag[2]))
+
+    def reset_max_overlap(self) -> None:
+        """Start a new window for max_overlap (run_case: every output frame)."""
+        self._diag[2] = 0.0
 
     def slice_fields(self, width: float) -> dict[str, np.ndarray]:
         """Slice averages over slices of `width` (m) from the inlet (papers §3.2).

@@ -151,8 +151,8 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
 def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
     """Second half of a step: forces at the new positions, then the closing half kick."""
     compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
-    # diag[2]: running maximum overlap (grain-grain, wall, feed) since Simulation.advance began,
-    # so that the run guard sees every step, not only the last one of a frame
+    # diag[2]: running maximum overlap (grain-grain, wall, feed) since the last
+    # Simulation.reset_max_overlap, so that the run guard sees every step, not only a frame's last
     diag[2] = max(diag[2], diag[0], diag[1])
     _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])
     counters[P.STEPS] += 1
