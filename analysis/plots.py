@@ -240,36 +240,48 @@ OBSERVABLE_LABELS = {"pressure_drop": "pressure drop", "slug_velocity": "slug ve
 
 def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
     """Relative error of pressure drop, slug velocity and slug length against the CPU time of
-    each case (one core: its wall time on an otherwise idle machine) (analysis.precision.relative_errors tables, one per knob). Filled markers: error
-    resolved (> 2 combined standard errors); open markers: within the statistical noise, whose
-    one-standard-error level is the dotted line below each point. A star marks each knob's
-    default value (`defaults`: parameter -> value); the reference case is drawn at the bottom."""
-    fig = Figure(figsize=(11.0, 3.6), layout="constrained")
+    each case (one core: its wall time on an otherwise idle machine), from
+    analysis.precision.relative_errors tables, one per knob. Filled markers: error resolved (> 2
+    combined standard errors); open markers: within that noise, whose one-standard-error level is
+    the dotted line. Dashed grey: twice the run-to-run scatter of all the study's cases. A star
+    marks each knob's default (`defaults`: parameter -> value); squares at the bottom mark the
+    references (error 0)."""
+    from .precision import run_to_run_scatter
+
+    fig = Figure(figsize=(11.0, 3.8), layout="constrained")
     axes = fig.subplots(1, len(OBSERVABLE_LABELS), sharex=True)
     defaults = defaults or {}
-    floor = 1e-4  # the reference (error 0) is drawn here on the log axis
+    scatter = run_to_run_scatter(tables)
+    floor = 3e-3  # the references (error 0) are drawn here on the log axis
     for ax, (q, name) in zip(axes, OBSERVABLE_LABELS.items()):
         for table in tables:
             knob = table["parameter"].iloc[0]
-            t = table["cpu_time_s"].to_numpy(dtype=float)
-            err = np.maximum(table[f"{q}_error"].to_numpy(dtype=float), floor)
-            noise = table[f"{q}_noise"].to_numpy(dtype=float)
-            resolved = table[f"{q}_resolved"].to_numpy(dtype=bool)
+            ref = table["is_reference"].to_numpy(dtype=bool)
+            part = table.loc[~ref].sort_values("cpu_time_s")
+            t = part["cpu_time_s"].to_numpy(dtype=float)
+            err = np.maximum(part[f"{q}_error"].to_numpy(dtype=float), floor)
+            resolved = part[f"{q}_resolved"].to_numpy(dtype=bool)
             line = ax.plot(t, err, "-", lw=0.8, label=KNOBS.get(knob, knob))[0]
             color = line.get_color()
             ax.plot(t[resolved], err[resolved], "o", color=color, ms=5)
             ax.plot(t[~resolved], err[~resolved], "o", mfc="white", color=color, ms=5)
-            ax.plot(t, noise, ":", color=color, lw=0.8)
-            for ti, ei, v in zip(t, err, table["value"]):
+            ax.plot(t, part[f"{q}_noise"].to_numpy(dtype=float), ":", color=color, lw=0.8)
+            for ti, ei, v in zip(t, err, part["value"]):
                 ax.annotate(f"{v:g}", (ti, ei), textcoords="offset points", xytext=(3, 3), fontsize=6,
                             color=color)
+            ax.plot(table.loc[ref, "cpu_time_s"], [floor], "s", color=color, ms=5)
             if knob in defaults:
-                sel = np.isclose(table["value"].to_numpy(dtype=float), float(defaults[knob]))
-                ax.plot(t[sel], err[sel], "*", color=color, ms=12, mfc="none")
+                sel = np.isclose(part["value"].to_numpy(dtype=float), float(defaults[knob]))
+                ax.plot(t[sel], err[sel], "*", color=color, ms=13, mfc="none")
+        if np.isfinite(scatter[q]):
+            ax.axhline(2 * scatter[q], color="0.5", ls="--", lw=0.8)
+            ax.annotate("2 x run-to-run scatter", (0.02, 2 * scatter[q]), xycoords=("axes fraction", "data"),
+                        xytext=(0, 2), textcoords="offset points", fontsize=6, color="0.4")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.set_ylim(bottom=floor / 1.5)
         ax.set_title(name, fontsize=10)
         ax.set_xlabel("CPU time of the case (s, one core)")
     axes[0].set_ylabel("relative error against the reference")
-    axes[0].legend(frameon=False, fontsize=7)
+    axes[0].legend(frameon=False, fontsize=7, loc="upper right")
     return fig

@@ -48,3 +48,16 @@ def relative_errors(summaries: pd.DataFrame, parameter: str, reference) -> pd.Da
     out.attrs["units"] = {"pressure_drop": "Pa m-1", "slug_velocity": "m s-1", "slug_length": "m",
                           "wall_time_s": "s", "cpu_time_s": "s"}
     return out.sort_values("value").reset_index(drop=True)
+
+
+def run_to_run_scatter(tables: list[pd.DataFrame]) -> dict[str, float]:
+    """Relative standard deviation (std/mean, ddof=1) of each observable over every distinct case
+    of a study (cases shared by several knob sweeps counted once). When no knob matters, this is
+    the scatter of independent runs, the honest yardstick for the errors."""
+    rows = pd.concat(tables, ignore_index=True)
+    rows = rows.drop_duplicates(subset=[*OBSERVABLES, "cpu_time_s"])
+    out = {}
+    for q in OBSERVABLES:
+        x = rows[q].dropna().to_numpy(dtype=float)
+        out[q] = float(np.std(x, ddof=1) / abs(np.mean(x))) if len(x) > 1 else float("nan")
+    return out

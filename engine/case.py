@@ -137,7 +137,7 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("numerics.gas_interval", 10, "1",
         "Grain steps per gas update (the drag is held in between); 1 = every step.", kind=int,
         low=1, high=10000),
-    Key("numerics.time_step_fraction", 0.05, "1",
+    Key("numerics.time_step_fraction", 0.1, "1",
         "Time step as a fraction of the grain-grain contact time t_c (rounded down to divide "
         "output.interval); refused above the stable limit.",
         low=0.0, low_open=True, high=10.0),
@@ -164,7 +164,8 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         low=0.0, low_open=True, high=1e4),
     Key("run.steady_rel_error", 0.03, "1",
         "Steady when the batch-means standard error of the mean pressure drop (10 batches) is "
-        "below this fraction of the mean.", low=0.0, low_open=True, high=1.0),
+        "below this fraction of the mean and the grains in the tube agree within this fraction "
+        "between the window's halves.", low=0.0, low_open=True, high=1.0),
     Key("run.checkpoint_interval", 600.0, "s (wall)",
         "Wall-clock seconds between checkpoints of a running case (0: never).", low=0.0, high=1e6),
     Key("output.interval", 0.01, "s", "Simulated time between output frames (time series and slices).",

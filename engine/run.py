@@ -38,20 +38,30 @@ def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
     """(start, end) of a converged steady window of the pressure drop, or None if not yet steady.
 
     The tube counts as filled once grains have left it; run.steady_settle seconds after that the
-    window opens, and the run is steady when the window is at least run.steady_min_window long and
-    the batch-means standard error of the mean pressure drop is below run.steady_rel_error of it.
+    first candidate window opens, later candidates every half run.steady_min_window. A window
+    [start, now] is steady when it is at least run.steady_min_window long, the batch-means
+    standard error of its mean pressure drop is below run.steady_rel_error of the mean, and the
+    mean number of grains in the tube differs by less than that fraction between its first and
+    second half (the batch-means error does not see a slow drift of the hold-up, e.g. a warm start
+    still adjusting). The earliest steady candidate is returned.
     """
     t = np.asarray(recorder.times)
     out = np.asarray(recorder.series["mass_out"])
     if not len(t) or out[-1] <= 0:
         return None
-    start = t[np.argmax(out > 0)] + case["run.steady_settle"]
-    inside = t >= start
-    if t[-1] - start < case["run.steady_min_window"]:
-        return None
-    mean, error = batch_means_error(np.asarray(recorder.series["pressure_drop"])[inside])
-    if mean > 0 and error < case["run.steady_rel_error"] * mean:
-        return float(start), float(t[-1])
+    first = t[np.argmax(out > 0)] + case["run.steady_settle"]
+    length, tol = case["run.steady_min_window"], case["run.steady_rel_error"]
+    dp = np.asarray(recorder.series["pressure_drop"])
+    grains = np.asarray(recorder.series["n_particles"], dtype=float)
+    for start in np.arange(first, t[-1] - length + 1e-9, 0.5 * length):
+        inside = t >= start
+        mean, error = batch_means_error(dp[inside])
+        if not (mean > 0 and error < tol * mean):
+            continue
+        n = grains[inside]
+        early, late = n[:len(n) // 2].mean(), n[len(n) // 2:].mean()
+        if abs(late - early) <= tol * max(late, 1.0):
+            return float(start), float(t[-1])
     return None
 
 

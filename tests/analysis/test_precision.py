@@ -44,3 +44,14 @@ def test_work_precision_figure_has_units_and_log_axes():
     assert len(axes) == 3
     assert all(ax.get_xscale() == "log" and ax.get_yscale() == "log" for ax in axes)
     assert "CPU time" in axes[0].get_xlabel() and "(s" in axes[0].get_xlabel()
+
+
+def test_run_to_run_scatter_counts_shared_cases_once():
+    from analysis.precision import run_to_run_scatter
+
+    a = relative_errors(summaries(), "numerics.time_step_fraction", 0.1)
+    b = a.copy()  # the same cases seen by a second knob sweep
+    scatter = run_to_run_scatter([a, b])
+    x = np.array([1010.0, 1000.0, 1100.0])
+    assert scatter["pressure_drop"] == pytest.approx(np.std(x, ddof=1) / x.mean())
+    assert scatter["slug_length"] == pytest.approx(0.0, abs=1e-12)

@@ -14,7 +14,7 @@ from _helpers import read_json, save_figure, setup_logging, snakemake_or_cli, wr
 def main(smk) -> None:
     log = setup_logging(smk)
     from analysis.plots import work_precision
-    from analysis.precision import relative_errors
+    from analysis.precision import relative_errors, run_to_run_scatter
 
     tables, defaults = [], {}
     for sweep, study in smk.params.studies.items():
@@ -30,6 +30,8 @@ def main(smk) -> None:
                      row["pressure_drop_noise"], row["slug_velocity_error"], row["slug_length_error"])
     table = pd.concat(tables, ignore_index=True)
     table.attrs["units"] = tables[0].attrs["units"]
+    table.attrs["run_to_run_scatter"] = run_to_run_scatter(tables)
+    log.info("run-to-run scatter (std/mean over the study's cases): %s", table.attrs["run_to_run_scatter"])
     write_table(table, smk.output.table)
     save_figure(work_precision(tables, defaults), smk.output.png, smk.output.get("pdf"))
 
