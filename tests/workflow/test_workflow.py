@@ -82,6 +82,29 @@ def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
     assert "results/figures/X01.pdf" in out  # and as a figure of one's own
 
 
+@pytest.mark.workflow
+def test_new_sweep_written_as_yaml_runs_through_to_a_curve(tmp_path):
+    """The same kind of YAML-only sweep, run for real in a 3 cm tube (two short cases)."""
+    work = scratch(tmp_path)
+    (work / "config/restitution.yaml").write_text(yaml.safe_dump({
+        "sweeps": {"h_restitution": {
+            "base": "config/cases/horizontal.yaml",
+            "overrides": {"tube.length": 0.03, "gas.nodes_x": 9, "run.duration": 1.0},
+            "position": 0.015,
+            "parameters": {"particles.restitution": [0.3, 0.9]},
+            "same_as": {"wall.restitution": "particles.restitution"}}}}))
+    run = snakemake("results/curves/h_restitution.png", "--cores", "2",
+                    "--configfile", "config/restitution.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    import pandas as pd
+
+    table = pd.read_csv(work / "results/curves/h_restitution.csv", comment="#")
+    assert sorted(table["particles.restitution"]) == [0.3, 0.9]
+    assert list(table["wall.restitution"]) == list(table["particles.restitution"])
+    assert (table["pressure_drop"] > 0).all()
+    assert (work / "results/curves/h_restitution.png").stat().st_size > 0
+
+
 def test_warm_started_sweep_depends_on_its_source_case(tmp_path):
     work = scratch(tmp_path)
     (work / "config/warm.yaml").write_text(yaml.safe_dump({"sweeps": {"h_warm": {
