@@ -56,7 +56,7 @@ import numpy as np  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
 from engine import Case, Simulation  # noqa: E402
-from engine.bench import PLUG_LENGTH, PLUG_START, TARGET_GRAINS  # noqa: E402
+from engine.bench import PLUG_LENGTH, PLUG_START, TARGET_GRAINS, stack_layers  # noqa: E402
 from engine.feed import layer_template  # noqa: E402
 
 STANDARD_LENGTH = 0.525                      # m, the standard case's tube (engine.bench)
@@ -111,17 +111,7 @@ def dense_packing(case: Case, seed: int = 0) -> np.ndarray:
     template, per_layer = _layers(case["tube.diameter"], d)
     xs = np.arange(d, length - d, LAYER_SPACING * d)
     plug = (xs >= PLUG_FROM * length) & (xs < PLUG_TO * length)
-    rng = np.random.default_rng(seed)
-    layers = []
-    for x, full in zip(xs, plug):
-        angle = rng.uniform(0, 2 * np.pi)  # random layer rotations break the lattice symmetry
-        c, s = np.cos(angle), np.sin(angle)
-        yz = template @ np.array([[c, s], [-s, c]])
-        if not full:
-            yz = yz[np.argsort(yz[:, 1])[:per_layer]]
-        jitter = rng.uniform(-0.004, 0.004, len(yz)) * d
-        layers.append(np.column_stack([x + jitter, yz]))
-    return np.vstack(layers)
+    return stack_layers(xs, plug, template, per_layer, d, np.random.default_rng(seed))
 
 
 def settled_state(grains: int, diameter: float, settle_time: float = SETTLE_TIME) -> dict:

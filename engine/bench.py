@@ -43,13 +43,18 @@ def standard_packing(case: Case) -> np.ndarray:
     n_plug = plug.sum() * len(template)
     # bed: the lowest grains of each layer, as many as give about TARGET_GRAINS in all
     per_layer = max(1, round((TARGET_GRAINS - n_plug) / (~plug).sum()))
-    rng = np.random.default_rng(0)
+    return stack_layers(xs, plug, template, per_layer, d, np.random.default_rng(0))
+
+
+def stack_layers(xs, full, template, per_layer: int, d: float, rng) -> np.ndarray:
+    """Grain centres (n, 3): a randomly rotated ring layer `template` (k, 2) at each x (m); full
+    layers where `full`, else only its lowest `per_layer` grains (a bed); small axial jitter."""
     layers = []
-    for x, full in zip(xs, plug):
+    for x, whole in zip(xs, full):
         angle = rng.uniform(0, 2 * np.pi)  # random layer rotations break the lattice symmetry
         c, s = np.cos(angle), np.sin(angle)
         yz = template @ np.array([[c, s], [-s, c]])
-        if not full:
+        if not whole:
             yz = yz[np.argsort(yz[:, 1])[:per_layer]]
         jitter = rng.uniform(-0.004, 0.004, len(yz)) * d
         layers.append(np.column_stack([x + jitter, yz]))
