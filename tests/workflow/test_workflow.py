@@ -195,3 +195,7 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
             assert "snapshot_position" not in ds  # ... and nowhere else
     assert json.loads((work / "results/benchmarks/engine.json").read_text())["grains"] > 0
     assert (work / "results/benchmarks/timings.csv").exists()
+    report = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
+    assert report.returncode == 0, report.stderr[-3000:]
+    html = (work / "report.html").read_text(errors="replace")
+    assert "validation.csv" in html and "H01.png" in html
