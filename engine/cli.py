@@ -39,14 +39,14 @@ def _run(args: argparse.Namespace) -> int:
     """Run one case to a case file; numerical failures exit 1 with a one-line reason."""
     import logging
 
-    from .run import RunError, run_case
+    from .run import InitialStateError, RunError, run_case
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="plugsim: %(message)s")
     case = Case.from_yaml(args.case, args.set)
     try:
         run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state)
-    except ValueError as err:  # an unusable initial state: refused before any step
+    except InitialStateError as err:  # refused before any step
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
     except RunError as err:

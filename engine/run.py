@@ -26,6 +26,10 @@ class RunError(RuntimeError):
     """A run stopped for a numerical reason; the message is one line."""
 
 
+class InitialStateError(ValueError):
+    """A warm-start file that cannot start this case (missing state, other grains or tube)."""
+
+
 def checkpoint_path(out: Path) -> Path:
     return out.with_name(out.name + ".ckpt")
 
@@ -106,17 +110,18 @@ def _load_checkpoint(path: Path, digest: str):
 
 def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions, velocities, angular velocities of the grains at the end of case file `path`, for
-    a warm start of `case`; grains beyond case's tube length are left out. Raises ValueError
-    (naming the file and the mismatch) when the grains or the tube cross-section differ."""
+    a warm start of `case`; grains beyond case's tube length are left out. Raises
+    InitialStateError (naming the file and the mismatch) when the grains or the tube
+    cross-section differ."""
     import xarray as xr
 
     with xr.open_dataset(path) as ds:
         if "final_position" not in ds:
-            raise ValueError(f"initial state {path}: no final_position (written by plugsim >= 0.2)")
+            raise InitialStateError(f"initial state {path}: no final_position (written by plugsim >= 0.2)")
         for attr, key in (("tube_diameter", "tube.diameter"), ("particle_diameter", "particles.diameter"),
                           ("particle_density", "particles.density")):
             if not math.isclose(float(ds.attrs[attr]), case[key], rel_tol=1e-9):
-                raise ValueError(f"initial state {path}: {key} = {float(ds.attrs[attr]):g} there, "
+                raise InitialStateError(f"initial state {path}: {key} = {float(ds.attrs[attr]):g} there, "
                                  f"{case[key]:g} here; a warm start needs the same grains and tube cross-section")
         pos, vel, omg = (ds[name].values.astype(float) for name in
                          ("final_position", "final_velocity", "final_angular_velocity"))

@@ -228,12 +228,16 @@ def test_warm_start_reaches_the_same_steady_state_as_a_cold_start(tmp_path):
     run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=2.0"]), warm, initial_state=other)
     with xr.open_dataset(other) as a, xr.open_dataset(warm) as b:
         assert b.n_particles.values[0] == a.n_particles.values[-1] == b.attrs["initial_particles"] > 50
-        m = b.attrs["initial_mass"] / b.attrs["initial_particles"]
+        m = b.attrs["particle_density"] * math.pi * b.attrs["particle_diameter"] ** 3 / 6  # one grain, kg
         np.testing.assert_allclose(b.attrs["initial_mass"] + b.mass_in.values - b.mass_out.values,
                                    b.n_particles.values * m, rtol=1e-9)
         assert b.attrs["initial_state"] == str(other)
     cold_mean, cold_se = _mean_after(cold, 1.0)  # 2 s of steady state
     warm_mean, warm_se = _mean_after(warm, 1.0)  # 1 s, after 1 s to forget the start
+    start_mean, start_se = _mean_after(other, 0.5)
+    # the start is distinguishable from the cold steady state (measured ~5 standard errors apart),
+    # so a warm run that remembered it would fail the comparison below
+    assert abs(start_mean - cold_mean) > 3 * math.hypot(cold_se, start_se), (start_mean, cold_mean)
     # two independent time means of the same steady state: they differ by less than 3 combined
     # standard errors unless the start is remembered (false alarm ~0.3 % if the errors are right)
     assert abs(warm_mean - cold_mean) < 3 * math.hypot(cold_se, warm_se), (cold_mean, warm_mean, cold_se, warm_se)

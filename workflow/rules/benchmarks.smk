@@ -24,7 +24,7 @@ rule bench:
 
 
 rule work_precision:
-    """Error of the pressure drop, slug velocity and slug length against wall time for each
+    """Error of the pressure drop, slug velocity and slug length against CPU time for each
     numerical knob (config benchmarks.work_precision: sweep -> reference value)."""
     input:
         summaries=lambda wc: [summary_json(s, p) for s in WORK_PRECISION for p in POINTS[s]],
@@ -49,12 +49,6 @@ rule work_precision:
         mem_mb=1000,
     script:
         "../scripts/work_precision.py"
-
-
-onsuccess:
-    import timings  # workflow/scripts/timings.py
-
-    timings.collect("results/benchmarks/jobs", "results/benchmarks/timings.csv")
 
 
 rule scale:
@@ -110,3 +104,9 @@ rule stability:
     shell:
         "NUMBA_NUM_THREADS={threads} {params.python} {params.script} --out-dir $(dirname {output.csv}) "
         "{params.reduced} > {log} 2>&1"
+
+
+onsuccess:
+    import timings  # workflow/scripts/timings.py
+
+    timings.collect("results/benchmarks/jobs", "results/benchmarks/timings.csv")

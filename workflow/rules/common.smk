@@ -390,16 +390,14 @@ for _s, _spec in WORK_PRECISION.items():
         raise ValueError(f"config: benchmarks.work_precision names sweep {_s!r}, which is not declared")
     if len(sweep_parameter_keys(_s, tied=False)) != 1:
         raise ValueError(f"config: benchmarks.work_precision: sweep {_s!r} must vary exactly one parameter")
-    _key = sweep_parameter_keys(_s, tied=False)[0]
-    _vals = [float(v[_key] if isinstance(v, dict) else v) for v in SWEEPS[_s]["parameters"][_key]]
-    if not any(abs(v - float(_spec["reference"])) <= 1e-9 * abs(v) for v in _vals):
-        raise ValueError(f"config: benchmarks.work_precision.{_s}.reference = {_spec['reference']} "
-                         f"is not a value of {_key} in sweep {_s!r} ({_vals})")
+    try:  # the reference must be one point of the sweep
+        sw.find_point(_s, POINTS[_s], {sweep_parameter_keys(_s, tied=False)[0]: _spec["reference"]})
+    except sw.SweepError as err:
+        raise ValueError(f"config: benchmarks.work_precision.{_s}.reference: {err}") from None
 
 
 def knob_default(sweep):
     """The value a sweep's knob takes without the sweep: base case + the sweep's fixed overrides."""
     key = sweep_parameter_keys(sweep, tied=False)[0]
-    overrides = dict(SWEEPS[sweep].get("overrides") or {})
-    overrides.update(config.get("all_cases") or {})
-    return _base_case(SWEEPS[sweep]["base"]).with_overrides(list(overrides.items()))[key]
+    overrides = {**(SWEEPS[sweep].get("overrides") or {}), **(config.get("all_cases") or {})}
+    return _build(sweep, "(without the parameter)", overrides)[key]
