@@ -167,3 +167,90 @@ def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwar
                           "t_end": "s", "slug_rate": "s-1", "slug_velocity": "m s-1",
                           "slug_length": "m", "mass_flow_out": "kg s-1"}
     return out
+
+
+# ---- shape of a characteristic curve (validation of the papers' trend statements) ---------------
+
+def _weights(err, y):
+    """1/err weights; points without an error get the median relative error of the others."""
+    err = np.asarray(err, dtype=float)
+    y = np.asarray(y, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(err / y)
+    known = rel[np.isfinite(rel) & (rel > 0)]
+    fallback = float(np.median(known)) if len(known) else 0.05  # 5 %: about the run-to-run scatter
+    return np.where(np.isfinite(err) & (err > 0), err, fallback * np.abs(y))
+
+
+def linear_slope(x, y, err) -> tuple[float, float]:
+    """Weighted least-squares slope dy/dx and its standard error (units of y per unit of x).
+
+    The error is scaled by the fit's reduced chi-square when that exceeds 1, so scatter beyond
+    the points' own standard errors widens it (never narrows it).
+    """
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if len(x) < 2:
+        raise ValueError("a slope needs at least two points")
+    sigma = _weights(err, y)
+    if len(x) == 2:
+        return float((y[1] - y[0]) / (x[1] - x[0])), float(np.hypot(*sigma) / abs(x[1] - x[0]))
+    coef, cov = np.polyfit(x, y, 1, w=1 / sigma, cov="unscaled")
+    chi2 = float(np.sum(((y - np.polyval(coef, x)) / sigma) ** 2)) / (len(x) - 2)
+    return float(coef[0]), float(np.sqrt(cov[0, 0] * max(chi2, 1.0)))
+
+
+def trend(x, y, err, z: float = 2.0) -> str:
+    """'increasing' / 'decreasing' when the weighted slope is more than z standard errors from 0,
+    else 'flat'."""
+    slope, sem = linear_slope(x, y, err)
+    if slope > z * sem:
+        return "increasing"
+    if slope < -z * sem:
+        return "decreasing"
+    return "flat"
+
+
+def is_monotonic_increasing(x, y, err, z: float = 2.0) -> bool:
+    """True when no step between neighbouring points (sorted by x) falls by more than z combined
+    standard errors, and the curve rises overall (last point above the first by more than that)."""
+    order = np.argsort(np.asarray(x, dtype=float))
+    y = np.asarray(y, dtype=float)[order]
+    sigma = _weights(np.asarray(err, dtype=float)[order], y)
+    steps = np.diff(y)
+    tol = z * np.hypot(sigma[1:], sigma[:-1])
+    return bool(np.all(steps >= -tol) and y[-1] - y[0] > z * np.hypot(sigma[0], sigma[-1]))
+
+
+def hyperbola(x, a, x0, b):
+    """a / (x - x0) + b: diverges at x0, tends to b for large x (V §4.1, Fig. 7)."""
+    return a / (x - x0) + b
+
+
+def fit_deviation(x, y, err, model: str) -> tuple[float, dict]:
+    """Largest relative deviation |y - fit| / fit of the points from a weighted fit of `model`
+    ('linear' or 'hyperbola'), with the fitted parameters. Dimensionless."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    sigma = _weights(err, y)
+    if model == "linear":
+        if len(x) < 3:
+            raise ValueError("a linear fit needs at least three points to be tested")
+        coef = np.polyfit(x, y, 1, w=1 / sigma)
+        fit, params = np.polyval(coef, x), {"slope": float(coef[0]), "intercept": float(coef[1])}
+    elif model == "hyperbola":
+        from scipy.optimize import curve_fit
+
+        if len(x) < 4:
+            raise ValueError("a hyperbola fit needs at least four points to be tested")
+        # start: divergence just below the smallest x, asymptote at the largest-x value
+        x0 = x.min() - 0.5 * (x.max() - x.min())
+        a0 = (y[np.argmin(x)] - y[np.argmax(x)]) * (x.min() - x0)
+        try:
+            p, _ = curve_fit(hyperbola, x, y, p0=(a0, x0, y[np.argmax(x)]), sigma=sigma,
+                             bounds=([-np.inf, -np.inf, -np.inf], [np.inf, x.min() * (1 - 1e-9), np.inf]),
+                             maxfev=20000)
+        except RuntimeError as err_fit:
+            raise ValueError(f"the hyperbola fit did not converge: {err_fit}") from None
+        fit, params = hyperbola(x, *p), {"a": float(p[0]), "x0": float(p[1]), "b": float(p[2])}
+    else:
+        raise ValueError(f"unknown model {model!r} (known: linear, hyperbola)")
+    return float(np.max(np.abs(y - fit) / np.abs(fit))), params

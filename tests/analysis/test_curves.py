@@ -7,6 +7,7 @@ import pytest
 
 from analysis import (batch_means, case_summary, mser_start, regime, steady_pressure_drop,
                       sweep_table)
+from analysis import curves
 from analysis.curves import BULK_FILL, DILUTE_SLUG_FRACTION
 
 from . import synthetic as S
@@ -104,3 +105,49 @@ def test_sweep_table_against_the_swept_parameters(tmp_path):
         level = levels[(row["gas.superficial_velocity"], row["feed.mass_flow_kg_h"])]
         assert abs(row["pressure_drop"] - level) < 4 * row["pressure_drop_sem"]  # 4 std errors
     assert table.attrs["units"]["pressure_drop"] == "Pa m-1"
+
+
+# ---- curve shapes for the papers' trend statements ----------------------------------------------
+
+def test_linear_slope_recovers_a_known_line_and_its_error():
+    # y = 3 x + 1 with Gaussian noise of sigma 0.1: the weighted fit must find the slope within
+    # a few of its own standard errors, and that error must be near the analytic
+    # sigma / sqrt(sum (x - mean x)^2) = 0.1 / sqrt(82.5) = 0.011 (chi2 scaling only widens it).
+    rng = np.random.default_rng(1)
+    x = np.arange(10.0)
+    y = 3 * x + 1 + rng.normal(0, 0.1, x.size)
+    slope, sem = curves.linear_slope(x, y, np.full(x.size, 0.1))
+    assert abs(slope - 3) < 3 * sem
+    assert 0.011 <= sem < 0.02
+
+
+def test_trend_names_rises_falls_and_noise():
+    x = np.linspace(0.5, 5, 9)
+    err = np.full(x.size, 0.5)
+    assert curves.trend(x, 10 + 2 * x, err) == "increasing"
+    assert curves.trend(x, 10 - 2 * x, err) == "decreasing"
+    # alternating +-0.5 around a constant: slope within its error
+    assert curves.trend(x, 10 + 0.5 * (-1) ** np.arange(x.size), err) == "flat"
+
+
+def test_monotonic_increase_tolerates_noise_but_not_a_real_drop():
+    x = np.arange(6.0)
+    err = np.full(6, 0.1)
+    assert curves.is_monotonic_increasing(x, [1.0, 1.9, 1.85, 3.0, 4.1, 5.0], err)  # dip 0.05 < 2*0.14
+    assert not curves.is_monotonic_increasing(x, [1.0, 2.0, 1.2, 3.0, 4.0, 5.0], err)  # drop 0.8
+    assert not curves.is_monotonic_increasing(x, np.full(6, 2.0), err)  # no rise at all
+
+
+def test_fit_deviation_accepts_its_model_and_rejects_the_other():
+    eta = np.array([4.5, 5.5, 6.73, 7.5, 8.5])
+    y = curves.hyperbola(eta, 60.0, 3.5, 20.0)  # diverges at 3.5, tends to 20
+    err = 0.01 * y
+    dev, p = curves.fit_deviation(eta, y, err, "hyperbola")
+    assert dev < 1e-4 and p["x0"] == pytest.approx(3.5, rel=1e-3)
+    # the same points are far from a straight line (the first one most)
+    assert curves.fit_deviation(eta, y, err, "linear")[0] > 0.05
+    mdot = np.array([1.0, 2.49, 5.0, 7.5, 9.95])
+    dev, p = curves.fit_deviation(mdot, 2.0 * mdot + 1.0, np.full(5, 0.1), "linear")
+    assert dev < 1e-9 and p["slope"] == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="unknown model"):
+        curves.fit_deviation(mdot, mdot, mdot, "cubic")

@@ -86,7 +86,8 @@ for _fig, _spec in FIGURES.items():
 # validation statements (resources/paper_statements.yaml): cases they measure are consumers too
 MEASURE_NEEDS = {
     "pressure_drop": {"steady"}, "n_particles": {"steady"}, "regime": {"steady"},
-    "ratio": {"steady"}, "transition": {"steady"}, "argmax": {"steady"},
+    "ratio": {"steady"}, "transition": {"steady"}, "argmax": {"steady"}, "trend": {"steady"},
+    "monotonic": {"steady"}, "fit_deviation": {"steady"},
     "slug_stat": {"series"}, "slug_rate": {"series"}, "profile_min": {"series"},
     "profile_max": {"series"}, "selection_mean": {"series"},
     "radial_outer_minimum": {"series", "snapshots"},
@@ -358,7 +359,7 @@ def statement_files(st):
         files["selection"] = selection_csv(*st["_cases"][0])
     elif m == "radial_outer_minimum":
         files["radial"] = snapshot_file(*st["_cases"][0], "radial")
-    elif m in ("transition", "argmax"):
+    elif m in ("transition", "argmax", "trend", "monotonic", "fit_deviation"):
         files["curve"] = curve_csv(st["sweep"])
     return files
 

@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from analysis import curves
 from _helpers import ensure_parent, read_json, read_table, setup_logging, snakemake_or_cli
 
 TO_UNIT = {"hPa/m": 0.01, "Pa/m": 1.0, "m/s": 1.0, "m": 1.0, "cm": 100.0, "1": 1.0, "1/s": 1.0,
@@ -158,6 +159,42 @@ def argmax(st, ctx):
     return x[i], half, "half-width"
 
 
+def _curve_xy(st):
+    """Points of a sweep's curve within `within` (x, pressure drop and its error, Pa/m)."""
+    rows = _curve_rows(st)
+    lo, hi = st.get("within", [-np.inf, np.inf])
+    rows = rows[(rows[st["x"]] >= lo) & (rows[st["x"]] <= hi)]
+    rows = rows[np.isfinite(rows["pressure_drop"].astype(float))]
+    if len(rows) < 2:
+        raise NotMeasurable(f"{len(rows)} point(s) in the range")
+    return (rows[st["x"]].to_numpy(dtype=float), rows["pressure_drop"].to_numpy(dtype=float),
+            rows["pressure_drop_sem"].to_numpy(dtype=float))
+
+
+def trend(st, ctx):
+    x, y, err = _curve_xy(st)
+    slope, sem = curves.linear_slope(x, y, err)
+    note = f"slope {slope / 100:.3g} +- {sem / 100:.2g} hPa/m per unit of {st['x']}"
+    return curves.trend(x, y, err), NAN, "category", note
+
+
+def monotonic(st, ctx):
+    x, y, err = _curve_xy(st)
+    ok = curves.is_monotonic_increasing(x, y, err)
+    return "monotonic increasing" if ok else "not monotonic increasing", NAN, "category", \
+        "steps (hPa/m): " + ", ".join(f"{d / 100:+.3g}" for d in np.diff(y[np.argsort(x)]))
+
+
+def fit_deviation(st, ctx):
+    x, y, err = _curve_xy(st)
+    try:
+        dev, params = curves.fit_deviation(x, y, err, st["model"])
+    except ValueError as why:
+        raise NotMeasurable(str(why)) from None
+    note = "fit " + ", ".join(f"{k} = {v:.3g}" for k, v in params.items()) + " (SI)"
+    return dev, NAN, "fit", note
+
+
 def radial_outer_minimum(st, ctx):
     with xr.open_dataset(st["files"]["radial"]) as ds:
         prof = ds.load()
@@ -176,7 +213,7 @@ def radial_outer_minimum(st, ctx):
 
 MEASURES = {f.__name__: f for f in (pressure_drop, n_particles, regime, ratio, slug_stat, slug_rate,
                                      profile_min, profile_max, selection_mean, transition, argmax,
-                                     radial_outer_minimum)}
+                                     trend, monotonic, fit_deviation, radial_outer_minimum)}
 
 
 # ---- comparison -------------------------------------------------------------------------------
@@ -213,10 +250,11 @@ def compare(st, ctx) -> dict:
         row.update(within="not available", note="the case or sweep is not in this configuration")
         return row
     try:
-        value, err, kind = MEASURES[st["measure"]](st, ctx)
+        value, err, kind, *note = MEASURES[st["measure"]](st, ctx)
     except NotMeasurable as why:
         row.update(within="not available", note=str(why))
         return row
+    row["note"] = note[0] if note else ""
     if kind == "category":
         row.update(ours=value, error_kind="category",
                    within="yes" if value == st["expected"] else "no")
@@ -229,10 +267,10 @@ def compare(st, ctx) -> dict:
         row.update(within="not available", note="not measurable (NaN)")
         return row
     row.update(ours=value, ours_error=err, error_kind=kind,
-               ratio=value / mid if mid else NAN,
+               ratio=value / mid if mid and kind != "fit" else NAN,
                within="yes" if (value + reach >= lo and value - reach <= hi) else "no")
-    if not math.isfinite(err):
-        row["note"] = "no standard error (too few samples)"
+    if not math.isfinite(err) and kind == "sem":
+        row["note"] = "; ".join(filter(None, [row["note"], "no standard error (too few samples)"]))
     return row
 
 

@@ -1,0 +1,84 @@
+"""Measures of the validation rule (workflow/scripts/validation.py) on synthetic curve tables with
+known shapes: the verdicts must follow the data, not the statement."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
+import validation  # noqa: E402
+from _helpers import write_table  # noqa: E402
+
+from analysis.curves import hyperbola  # noqa: E402
+
+
+def curve(tmp_path, x, dp_hpa_m, key="gas.viscosity", rel_err=0.02):
+    """A curve table as the curve rule writes it (pressure drop in Pa/m with its error)."""
+    dp = 100.0 * np.asarray(dp_hpa_m, dtype=float)
+    table = pd.DataFrame({key: x, "pressure_drop": dp, "pressure_drop_sem": rel_err * dp,
+                          "regime": "plug"})
+    path = tmp_path / f"curve{len(list(tmp_path.iterdir()))}.csv"
+    write_table(table, path)
+    return str(path)
+
+
+def statement(path, measure, key="gas.viscosity", **spec):
+    return {"id": "T", "paper": "V", "source": "test", "statement": "test", "measure": measure,
+            "sweep": "s", "x": key, "files": {"curve": path}, "case_names": [], **spec}
+
+
+ETA = np.array([4.5e-5, 5.5e-5, 6.73e-5, 7.5e-5, 8.5e-5])
+
+
+def test_hyperbola_statement_within_for_a_hyperbola_and_not_for_a_parabola(tmp_path):
+    spec = {"model": "hyperbola", "range": [0.0, 0.1], "unit": "1"}
+    good = curve(tmp_path, ETA, hyperbola(ETA, 4e-4, 3.6e-5, 25.0))
+    row = validation.compare(statement(good, "fit_deviation", **spec), {})
+    assert row["within"] == "yes" and row["ours"] < 0.01
+    # a parabola with its minimum inside the range: no decreasing hyperbola fits it within 10 %
+    bad = curve(tmp_path, ETA, 30 + 4e10 * (ETA - 6.5e-5) ** 2)
+    row = validation.compare(statement(bad, "fit_deviation", **spec), {})
+    assert row["within"] == "no", row
+
+
+def test_linear_statement_rejects_a_curved_mass_flow_dependence(tmp_path):
+    mdot = np.array([1.0, 2.49, 5.0, 7.5, 9.95])
+    spec = {"model": "linear", "range": [0.0, 0.1], "unit": "1"}
+    line = curve(tmp_path, mdot, 4 + 2.4 * mdot, key="feed.mass_flow_kg_h")
+    assert validation.compare(statement(line, "fit_deviation", key="feed.mass_flow_kg_h", **spec),
+                              {})["within"] == "yes"
+    square = curve(tmp_path, mdot, 1 + mdot ** 2, key="feed.mass_flow_kg_h")
+    assert validation.compare(statement(square, "fit_deviation", key="feed.mass_flow_kg_h", **spec),
+                              {})["within"] == "no"
+
+
+@pytest.mark.parametrize("dp, expected, within", [
+    ([50, 40, 33, 30, 28], "decreasing", "yes"),
+    ([28, 30, 33, 40, 50], "decreasing", "no"),
+    ([30, 30.3, 29.8, 30.1, 30], "decreasing", "no"),  # flat within 2 % errors
+])
+def test_trend_statement_follows_the_data(tmp_path, dp, expected, within):
+    row = validation.compare(statement(curve(tmp_path, ETA, dp), "trend", expected=expected,
+                                       unit="-"), {})
+    assert row["within"] == within
+    assert "slope" in row["note"]
+
+
+def test_monotonic_statement_and_the_within_range(tmp_path):
+    mu = np.array([0.0, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0])
+    spec = {"expected": "monotonic increasing", "unit": "-"}
+    rising = curve(tmp_path, mu, [20, 24, 27, 30, 35, 45, 60], key="particles.friction")
+    assert validation.compare(statement(rising, "monotonic", key="particles.friction", **spec),
+                              {})["within"] == "yes"
+    dip = curve(tmp_path, mu, [20, 24, 18, 30, 35, 45, 60], key="particles.friction")
+    assert validation.compare(statement(dip, "monotonic", key="particles.friction", **spec),
+                              {})["within"] == "no"
+    # the dip lies outside `within`, so the remaining points are monotonic
+    assert validation.compare(statement(dip, "monotonic", key="particles.friction",
+                                        within=[0.3, 1.0], **spec), {})["within"] == "yes"
