@@ -24,3 +24,22 @@ rule validation:
         mem_mb=2000,
     script:
         "../scripts/validation.py"
+
+
+rule reference:
+    """Copy what a reader needs to see the result without rerunning (figure PNGs and captions, sweep
+    curves, the validation table) to docs/reference/paper/, for committing. Not part of `all`:
+    `snakemake -j2 reference` after a run of the paper configuration."""
+    input:
+        figures=[f for fig in FIGURES for f in figure_files(fig) if not f.endswith(".pdf")],
+        curves=[f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters")
+                and not s.startswith("wp_") for ext in ("csv", "png")],
+        validation=["results/validation/validation.csv", "results/validation/validation.md"],
+    output:
+        directory("docs/reference/paper"),
+    log:
+        "logs/reference/reference.log",
+    shell:
+        "(mkdir -p {output}/figures {output}/curves"
+        " && cp {input.figures} {output}/figures/ && cp {input.curves} {output}/curves/"
+        " && cp {input.validation} {output}/ && du -sh {output}) > {log} 2>&1"
