@@ -199,3 +199,10 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     assert report.returncode == 0, report.stderr[-3000:]
     html = (work / "report.html").read_text(errors="replace")
     assert "validation.csv" in html and "H01.png" in html
+    # the committed reference copy is regenerated from the same outputs
+    ref = snakemake("--cores", "1", "--configfile", "config/ci.yaml", "reference", cwd=work)
+    assert ref.returncode == 0, ref.stderr[-3000:]
+    copy = work / "docs/reference/paper"
+    assert (copy / "validation.md").read_text() == (work / "results/validation/validation.md").read_text()
+    assert sorted(p.stem for p in (copy / "figures").glob("*.png")) == FIGURES
+    assert not list(copy.rglob("*.pdf"))  # PNG only: the committed copy stays small
