@@ -200,7 +200,8 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     html = (work / "report.html").read_text(errors="replace")
     assert "validation.csv" in html and "H01.png" in html
     # the committed reference copy is regenerated from the same outputs
-    ref = snakemake("--cores", "1", "--configfile", "config/ci.yaml", "reference", cwd=work)
+    # the target first: --configfile takes several values
+    ref = snakemake("reference", "--cores", "1", "--configfile", "config/ci.yaml", cwd=work)
     assert ref.returncode == 0, ref.stderr[-3000:]
     copy = work / "docs/reference/paper"
     assert (copy / "validation.md").read_text() == (work / "results/validation/validation.md").read_text()
