@@ -61,6 +61,20 @@ def test_ci_dry_run_lists_every_figure():
         assert f"results/figures/{fig}.png" in out
 
 
+def test_partial_validation_reports_what_is_not_run_yet_without_running_it(tmp_path):
+    """config/partial.yaml: the table of a run in progress, no case is started for it."""
+    work = scratch(tmp_path)
+    run = snakemake("validation", "--cores", "1", "--configfile", "config/partial.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "rule simulate" not in run.stdout + run.stderr
+    import pandas as pd
+
+    table = pd.read_csv(work / "results/validation/validation.csv")
+    assert (table["within"] == "not available").all()
+    assert table["note"].str.startswith("not run yet").all()
+    assert "Partial validation" in (work / "results/validation/validation.md").read_text()
+
+
 def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
     """A sweep over a key the papers never swept (the restitution of a horizontal tube), added as
     YAML only, expands to one case per point and reaches a curve."""

@@ -93,6 +93,7 @@ MEASURE_NEEDS = {
     "radial_outer_minimum": {"series", "snapshots"},
 }
 STATEMENTS = []
+PARTIAL = bool(config.get("validation", {}).get("partial", False))  # config/partial.yaml
 if config.get("validation", {}).get("statements"):
     STATEMENTS = yaml.safe_load(Path(config["validation"]["statements"]).read_text()) or []
 for _st in STATEMENTS:
@@ -361,7 +362,20 @@ def statement_files(st):
         files["radial"] = snapshot_file(*st["_cases"][0], "radial")
     elif m in ("transition", "argmax", "trend", "monotonic", "fit_deviation"):
         files["curve"] = curve_csv(st["sweep"])
+    if PARTIAL and not all(Path(f).exists() for v in files.values() for f in (v if isinstance(v, list) else [v])):
+        return {}
     return files
+
+
+def existing_if_partial(files):
+    """All files, or in a partial validation only those already produced."""
+    return [f for f in files if Path(f).exists()] if PARTIAL else files
+
+
+def pending(st):
+    """True when a partial validation skips a statement whose files are not produced yet."""
+    return PARTIAL and not st.get("_missing") and all(c is not None for c in st["_cases"]) \
+        and not statement_files(st)
 
 
 def validation_inputs(wildcards):
@@ -378,6 +392,7 @@ def validation_statements():
     for st in STATEMENTS:
         item = {k: v for k, v in st.items() if not k.startswith("_")}
         item["files"] = statement_files(st)
+        item["pending"] = pending(st)
         item["case_names"] = ["{}/{}".format(*c) if c else None for c in st["_cases"]]
         out.append(item)
     return out

@@ -14,6 +14,7 @@ rule validation:
         statements=validation_statements(),
         position=config["analysis"]["position"],
         all_cases=config.get("all_cases") or {},
+        partial=PARTIAL,
     log:
         "logs/validation/validation.log",
     benchmark:
@@ -29,17 +30,16 @@ rule validation:
 rule reference:
     """Copy what a reader needs to see the result without rerunning (figure PNGs and captions, sweep
     curves, the validation table) to docs/reference/paper/, for committing. Not part of `all`:
-    `snakemake -j2 reference` after a run of the paper configuration."""
+    `snakemake -j2 reference` after a run of the paper configuration (with config/partial.yaml:
+    only what exists, for a run done in parts)."""
     input:
-        figures=[f for fig in FIGURES for f in figure_files(fig) if not f.endswith(".pdf")],
-        curves=[f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters")
-                and not s.startswith("wp_") for ext in ("csv", "png")],
+        figures=existing_if_partial([f for fig in FIGURES for f in figure_files(fig) if not f.endswith(".pdf")]),
+        curves=existing_if_partial([f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters")
+                                    and not s.startswith("wp_") for ext in ("csv", "png")]),
         validation=["results/validation/validation.csv", "results/validation/validation.md"],
     output:
         directory("docs/reference/paper"),
     log:
         "logs/reference/reference.log",
-    shell:
-        "(mkdir -p {output}/figures {output}/curves"
-        " && cp {input.figures} {output}/figures/ && cp {input.curves} {output}/curves/"
-        " && cp {input.validation} {output}/ && du -sh {output}) > {log} 2>&1"
+    script:
+        "../scripts/reference.py"
