@@ -58,19 +58,38 @@ def mser_start(values, batch: int = 5) -> int:
     return k * batch
 
 
+FILLED_FRACTION = 0.95  # hold-up fraction of its final level at which the tube counts as filled
+
+
+def filled_index(ds: xr.Dataset, fraction: float = FILLED_FRACTION) -> int:
+    """First frame at which the grains in the tube reach `fraction` of their final level (the
+    median over the run's second half): the end of the filling. 0 without n_particles; a warm
+    start is filled at once."""
+    if "n_particles" not in ds:
+        return 0
+    n = np.asarray(ds["n_particles"].values, dtype=np.float64)
+    level = np.median(n[n.size // 2:])
+    return int(np.argmax(n >= fraction * level)) if level > 0 else 0
+
+
 def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None,
                          n_batches: int = N_BATCHES) -> dict:
     """Steady-state pressure drop per tube length (Pa/m) with its batch-means standard error.
 
-    The window starts at t_start (s) or, by default, where MSER-5 finds the transient over, and
-    ends with the run. Returns pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end (s),
-    n_batches.
+    The window starts at t_start (s) or, by default, once the tube has filled (filled_index: the
+    papers average "after filling") and MSER-5 finds the remaining transient over; it ends with
+    the run. Returns pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end
+    (s), n_batches.
     """
     require(ds, "pressure_drop")
     geo = geometry(ds)
     t = seconds(ds["time"].values)
     dp = np.asarray(ds["pressure_drop"].values, dtype=np.float64) / geo.tube_length
-    first = mser_start(dp) if t_start is None else int(np.searchsorted(t, t_start))
+    if t_start is None:
+        filled = filled_index(ds)
+        first = filled + mser_start(dp[filled:])
+    else:
+        first = int(np.searchsorted(t, t_start))
     mean, sem = batch_means(dp[first:], n_batches)
     return {"pressure_drop": mean, "pressure_drop_sem": sem, "t_start": float(t[first]),
             "t_end": float(t[-1]), "n_batches": n_batches}

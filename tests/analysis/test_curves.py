@@ -8,6 +8,7 @@ import pytest
 from analysis import (batch_means, case_summary, mser_start, regime, steady_pressure_drop,
                       sweep_table)
 from analysis import curves
+from analysis.casefile import seconds
 from analysis.curves import BULK_FILL, DILUTE_SLUG_FRACTION
 
 from . import synthetic as S
@@ -151,3 +152,17 @@ def test_fit_deviation_accepts_its_model_and_rejects_the_other():
     assert dev < 1e-9 and p["slope"] == pytest.approx(2.0)
     with pytest.raises(ValueError, match="unknown model"):
         curves.fit_deviation(mdot, mdot, mdot, "cubic")
+
+
+def test_steady_window_starts_after_the_tube_has_filled():
+    # a flat, noisy pressure drop (MSER alone would keep it whole) while the hold-up still rises
+    # to its level until t = 4 s: the papers average "after filling", so the window must start
+    # where the hold-up reaches 95 % of its final level (t = 3.8 s)
+    ds = S.build([], duration=10.0, pressure_drop=1000.0)
+    t = seconds(ds["time"].values)
+    ds["pressure_drop"] = ("time", 1000.0 + 10 * np.sin(7 * t))
+    ds["n_particles"] = ("time", 3000.0 * np.minimum(t / 4.0, 1.0))
+    assert t[curves.filled_index(ds)] == pytest.approx(3.8, abs=0.011)
+    assert steady_pressure_drop(ds)["t_start"] >= 3.8
+    ds["n_particles"] = ("time", np.full(t.size, 3000.0))  # a warm start: filled from the start
+    assert curves.filled_index(ds) == 0
