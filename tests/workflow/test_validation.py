@@ -82,3 +82,11 @@ def test_monotonic_statement_and_the_within_range(tmp_path):
     # the dip lies outside `within`, so the remaining points are monotonic
     assert validation.compare(statement(dip, "monotonic", key="particles.friction",
                                         within=[0.3, 1.0], **spec), {})["within"] == "yes"
+
+
+def test_reduced_run_warning_only_for_physical_overrides():
+    table = pd.DataFrame([validation.compare({"id": "T", "paper": "H", "source": "s", "statement": "s",
+                                              "measure": "trend", "value": 1, "tolerance": 1}, {})])
+    assert "reduced run" not in validation.markdown(table, {"all_cases": {"output.snapshot_t_min": 7.0}})
+    assert "reduced run" in validation.markdown(table, {"all_cases": {"tube.length": 0.1,
+                                                                      "output.snapshots": False}})

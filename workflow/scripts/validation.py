@@ -287,8 +287,10 @@ def markdown(table: pd.DataFrame, ctx) -> str:
     if ctx.get("partial"):
         lines += ["**Partial validation** (config validation.partial): statements whose cases or "
                   "curves were not produced yet are marked not available.", ""]
-    if ctx.get("all_cases"):
-        lines += [f"**Configuration overrides applied to every case:** `{ctx['all_cases']}` "
+    # output.* keys (what is written, when) do not change the physics; anything else does
+    physical = {k: v for k, v in (ctx.get("all_cases") or {}).items() if not k.startswith("output.")}
+    if physical:
+        lines += [f"**Configuration overrides applied to every case:** `{physical}` "
                   "(a reduced run: the comparison is not meaningful).", ""]
     lines += ["| id | source | statement | paper | ours | ratio | within | note |",
               "|---|---|---|---|---|---|---|---|"]
