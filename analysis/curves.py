@@ -241,7 +241,8 @@ def is_monotonic_increasing(x, y, err, z: float = 2.0) -> bool:
 
 
 def hyperbola(x, a, x0, b):
-    """a / (x - x0) + b: diverges at x0, tends to b for large x (V §4.1, Fig. 7)."""
+    """a / (x - x0) + b: diverges at x0, tends to b for large x (V §4.1, Fig. 7); fit_deviation
+    keeps x0 in [0, min x) and b >= 0."""
     return a / (x - x0) + b
 
 
@@ -260,12 +261,15 @@ def fit_deviation(x, y, err, model: str) -> tuple[float, dict]:
 
         if len(x) < 4:
             raise ValueError("a hyperbola fit needs at least four points to be tested")
-        # start: divergence just below the smallest x, asymptote at the largest-x value
-        x0 = x.min() - 0.5 * (x.max() - x.min())
+        # the papers' hyperbola (V §4.1): divergence at a positive x0 below the data, a finite
+        # non-negative asymptote b; start with x0 halfway to 0 and b at the largest-x value
+        lo_x0 = 0.0 if x.min() > 0 else -np.inf
+        x0 = 0.5 * x.min() if x.min() > 0 else x.min() - (x.max() - x.min())
         a0 = (y[np.argmin(x)] - y[np.argmax(x)]) * (x.min() - x0)
+        b0 = max(float(y[np.argmax(x)]), 1e-9 * float(np.max(np.abs(y))))
         try:
-            p, _ = curve_fit(hyperbola, x, y, p0=(a0, x0, y[np.argmax(x)]), sigma=sigma,
-                             bounds=([-np.inf, -np.inf, -np.inf], [np.inf, x.min() * (1 - 1e-9), np.inf]),
+            p, _ = curve_fit(hyperbola, x, y, p0=(a0, x0, b0), sigma=sigma,
+                             bounds=([-np.inf, lo_x0, 0.0], [np.inf, x.min() * (1 - 1e-9), np.inf]),
                              maxfev=20000)
         except RuntimeError as err_fit:
             raise ValueError(f"the hyperbola fit did not converge: {err_fit}") from None
