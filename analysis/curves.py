@@ -264,12 +264,13 @@ def fit_deviation(x, y, err, model: str) -> tuple[float, dict]:
         # the papers' hyperbola (V §4.1): divergence at a positive x0 below the data, a finite
         # non-negative asymptote b; start with x0 halfway to 0 and b at the largest-x value
         lo_x0 = 0.0 if x.min() > 0 else -np.inf
+        hi_x0 = x.min() - 1e-9 * max(float(np.ptp(x)), abs(float(x.min())), 1e-300)  # below the data
         x0 = 0.5 * x.min() if x.min() > 0 else x.min() - (x.max() - x.min())
         a0 = (y[np.argmin(x)] - y[np.argmax(x)]) * (x.min() - x0)
         b0 = max(float(y[np.argmax(x)]), 1e-9 * float(np.max(np.abs(y))))
         try:
             p, _ = curve_fit(hyperbola, x, y, p0=(a0, x0, b0), sigma=sigma,
-                             bounds=([-np.inf, lo_x0, 0.0], [np.inf, x.min() * (1 - 1e-9), np.inf]),
+                             bounds=([-np.inf, lo_x0, 0.0], [np.inf, hi_x0, np.inf]),
                              maxfev=20000)
         except RuntimeError as err_fit:
             raise ValueError(f"the hyperbola fit did not converge: {err_fit}") from None

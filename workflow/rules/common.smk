@@ -343,9 +343,20 @@ def figure_category(wildcards):
 
 # ---- inputs of the validation rule (validation.smk) -------------------------------------------
 
+def _in_config(st):
+    """The statement's cases and sweep are declared in this configuration."""
+    return not st.get("_missing") and all(c is not None for c in st["_cases"])
+
+
+def _flat(files):
+    """The paths of a statement_files dict (values are paths or lists of paths)."""
+    return [f for v in files.values() for f in (v if isinstance(v, list) else [v])]
+
+
 def statement_files(st):
-    """Files a statement's measure reads, by name; {} when its cases are not in this config."""
-    if st.get("_missing") or any(c is None for c in st["_cases"]):
+    """Files a statement's measure reads, by name; {} when its cases are not in this config, or in
+    a partial validation when they are not produced yet."""
+    if not _in_config(st):
         return {}
     m = st["measure"]
     files = {}
@@ -362,7 +373,7 @@ def statement_files(st):
         files["radial"] = snapshot_file(*st["_cases"][0], "radial")
     elif m in ("transition", "argmax", "trend", "monotonic", "fit_deviation"):
         files["curve"] = curve_csv(st["sweep"])
-    if PARTIAL and not all(Path(f).exists() for v in files.values() for f in (v if isinstance(v, list) else [v])):
+    if PARTIAL and not all(Path(f).exists() for f in _flat(files)):
         return {}
     return files
 
@@ -372,18 +383,8 @@ def existing_if_partial(files):
     return [f for f in files if Path(f).exists()] if PARTIAL else files
 
 
-def pending(st):
-    """True when a partial validation skips a statement whose files are not produced yet."""
-    return PARTIAL and not st.get("_missing") and all(c is not None for c in st["_cases"]) \
-        and not statement_files(st)
-
-
 def validation_inputs(wildcards):
-    files = []
-    for st in STATEMENTS:
-        for value in statement_files(st).values():
-            files += value if isinstance(value, list) else [value]
-    return sorted(set(files))
+    return sorted({f for st in STATEMENTS for f in _flat(statement_files(st))})
 
 
 def validation_statements():
@@ -392,7 +393,8 @@ def validation_statements():
     for st in STATEMENTS:
         item = {k: v for k, v in st.items() if not k.startswith("_")}
         item["files"] = statement_files(st)
-        item["pending"] = pending(st)
+        # partial validation: declared here but not produced yet
+        item["pending"] = PARTIAL and _in_config(st) and not item["files"]
         item["case_names"] = ["{}/{}".format(*c) if c else None for c in st["_cases"]]
         out.append(item)
     return out

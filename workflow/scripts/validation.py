@@ -125,10 +125,14 @@ def selection_mean(st, ctx):
     return float(np.mean(values)), sem, "sem"
 
 
-def _curve_rows(st):
+def _curve_rows(st, within=False):
+    """The sweep's curve at `where`, sorted by `x`; with within=True only x in `within`."""
     table = read_table(st["files"]["curve"])
     for key, value in (st.get("where") or {}).items():
         table = table[np.isclose(table[key].astype(float), float(value))]
+    if within:
+        lo, hi = st.get("within", [-np.inf, np.inf])
+        table = table[(table[st["x"]] >= lo) & (table[st["x"]] <= hi)]
     return table.sort_values(st["x"]).reset_index(drop=True)
 
 
@@ -147,9 +151,7 @@ def transition(st, ctx):
 
 
 def argmax(st, ctx):
-    rows = _curve_rows(st)
-    lo, hi = st.get("within", [-np.inf, np.inf])
-    rows = rows[(rows[st["x"]] >= lo) & (rows[st["x"]] <= hi)].reset_index(drop=True)
+    rows = _curve_rows(st, within=True)
     if not len(rows):
         raise NotMeasurable("no points in the range")
     x = rows[st["x"]].to_numpy(dtype=float)
@@ -161,9 +163,7 @@ def argmax(st, ctx):
 
 def _curve_xy(st):
     """Points of a sweep's curve within `within` (x, pressure drop and its error, Pa/m)."""
-    rows = _curve_rows(st)
-    lo, hi = st.get("within", [-np.inf, np.inf])
-    rows = rows[(rows[st["x"]] >= lo) & (rows[st["x"]] <= hi)]
+    rows = _curve_rows(st, within=True)
     rows = rows[np.isfinite(rows["pressure_drop"].astype(float))]
     if len(rows) < 2:
         raise NotMeasurable(f"{len(rows)} point(s) in the range")
