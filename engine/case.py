@@ -146,9 +146,10 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "faster modes than one pair (the stress sweep, docs/performance.md, saw heating and "
         "overlaps past 0.2 d from 0.74 of the pair limit); 1 accepts the pair limit itself.",
         low=0.0, low_open=True, high=1.0),
-    Key("numerics.neighbor_skin", 0.15, "1",
+    Key("numerics.neighbor_skin", 0.3, "1",
         "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "
-        "moved half of it).", low=0.0, low_open=True, high=2.0),
+        "moved half of it); results do not depend on it, only the cost (docs/performance.md).",
+        low=0.0, low_open=True, high=2.0),
     Key("run.seed", 0, "1", "Seed of the random numbers (feed layer orientations).", kind=int,
         low=0, high=2**31 - 1),
     Key("run.duration", 5.0, "s",

@@ -13,7 +13,8 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import params as P
 from .kernels import slices as S
-from .kernels.stepper import advance, compute_forces, finish_step, rebuild
+from .kernels.contacts import contact_forces
+from .kernels.stepper import advance, finish_step, rebuild
 
 PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
 
@@ -177,7 +178,7 @@ class Simulation:
     def _prepare(self) -> None:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
-        compute_forces(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
+        contact_forces(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
                        self._nbr, self._p, self._force, self._torque, self._wall_normal, self._diag)
         self._dirty = False
 

@@ -30,19 +30,43 @@ def _tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
     return s * vtx, s * vty, s * vtz
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
-def pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
-    """Add grain-grain contact forces and torques; diag[0] max overlap (m), diag[1] max feed overlap.
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def _wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r, kn, gn, mu, gt):
+    """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall).
 
-    force and torque must be zeroed by the caller. Pairs with a kinematic (feed) grain act on the
-    dynamic grain only; the kinematic one is driven by the feed.
+    Returns (F_n, F_x, F_y, F_z, T_x, T_y, T_z): normal force magnitude (0 when separating), force
+    and torque on the grain. Inlined with constant normals, the zero components fold away.
     """
+    fn = kn * delta + gn * (vx * nx + vy * ny + vz * nz)
+    if fn <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    ftx, fty, ftz = _tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
+                                vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+    return (fn, -fn * nx + ftx, -fn * ny + fty, -fn * nz + ftz,
+            r * (ny * ftz - nz * fty), r * (nz * ftx - nx * ftz), r * (nx * fty - ny * ftx))
+
+
+@nb.njit(cache=True, fastmath=FASTMATH)
+def contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag):
+    """Zero, then accumulate the grain-grain, cylinder-wall and inlet-wall forces and torques.
+
+    diag[0]: max overlap of dynamic grains (pairs and walls), diag[1]: max overlap with a feed
+    grain, m. wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
+    Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
+    The walls of grain i are handled in the same pass as its pairs, so that its force sums stay
+    in registers (one pass instead of two: 1.24x faster on the standard packing, docs/performance.md).
+    """
+    force[:n] = 0.0
+    torque[:n] = 0.0
     r = p[P.RADIUS]
     dia = 2.0 * r
     kn = p[P.KN]
     gn = p[P.GN_PAIR]
     gt = p[P.GT]
     mu = p[P.MU_PAIR]
+    gn_wall = p[P.GN_WALL]
+    mu_wall = p[P.MU_WALL]
+    inner = p[P.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
     max_overlap = 0.0
     max_feed = 0.0
     for i in range(n):
@@ -103,6 +127,35 @@ def pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
             torque[j, 0] += tx
             torque[j, 1] += ty
             torque[j, 2] += tz
+        wall_normal[i] = 0.0
+        if not kin[i]:
+            rho2 = yi * yi + zi * zi
+            if rho2 > inner * inner:
+                rho = math.sqrt(rho2)
+                delta = rho - inner
+                max_overlap = max(max_overlap, delta)
+                fn, fx, fy, fz, tx, ty, tz = _wall_contact(
+                    delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
+                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt)
+                wall_normal[i] = fn
+                fxi += fx
+                fyi += fy
+                fzi += fz
+                txi += tx
+                tyi += ty
+                tzi += tz
+            if xi < r:  # the inlet wall at x = 0
+                delta = r - xi
+                max_overlap = max(max_overlap, delta)
+                fn, fx, fy, fz, tx, ty, tz = _wall_contact(
+                    delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
+                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt)
+                fxi += fx
+                fyi += fy
+                fzi += fz
+                txi += tx
+                tyi += ty
+                tzi += tz
         force[i, 0] += fxi
         force[i, 1] += fyi
         force[i, 2] += fzi
@@ -111,57 +164,3 @@ def pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag):
         torque[i, 2] += tzi
     diag[0] = max_overlap
     diag[1] = max_feed
-
-
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def _wall_contact(i, delta, nx, ny, nz, vel, omg, p, force, torque):
-    """Contact of grain i with a wall of outward normal n (grain -> wall), overlap delta > 0.
-
-    Returns the normal force magnitude, N."""
-    r = p[P.RADIUS]
-    vx = vel[i, 0]
-    vy = vel[i, 1]
-    vz = vel[i, 2]
-    fn = p[P.KN] * delta + p[P.GN_WALL] * (vx * nx + vy * ny + vz * nz)
-    if fn <= 0.0:
-        return 0.0
-    wx = omg[i, 0]
-    wy = omg[i, 1]
-    wz = omg[i, 2]
-    ftx, fty, ftz = _tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, p[P.MU_WALL], p[P.GT])
-    force[i, 0] += -fn * nx + ftx
-    force[i, 1] += -fn * ny + fty
-    force[i, 2] += -fn * nz + ftz
-    torque[i, 0] += r * (ny * ftz - nz * fty)
-    torque[i, 1] += r * (nz * ftx - nx * ftz)
-    torque[i, 2] += r * (nx * fty - ny * ftx)
-    return fn
-
-
-@nb.njit(cache=True, fastmath=FASTMATH)
-def wall_forces(pos, vel, omg, kin, n, p, force, torque, wall_normal, diag):
-    """Add cylinder-wall and inlet-wall forces on dynamic grains; raises diag[0] to the wall overlap.
-
-    wall_normal[i] receives the normal force of the cylinder on grain i (N, 0 without contact)."""
-    r = p[P.RADIUS]
-    inner = p[P.TUBE_RADIUS] - r
-    max_overlap = diag[0]
-    for i in range(n):
-        if kin[i]:
-            continue
-        y = pos[i, 1]
-        z = pos[i, 2]
-        rho2 = y * y + z * z
-        wall_normal[i] = 0.0
-        if rho2 > inner * inner:
-            rho = math.sqrt(rho2)
-            delta = rho - inner  # analytic cylinder: overlap = rho + r - R
-            max_overlap = max(max_overlap, delta)
-            wall_normal[i] = _wall_contact(i, delta, 0.0, y / rho, z / rho, vel, omg, p, force, torque)
-        x = pos[i, 0]
-        if x < r:
-            delta = r - x
-            max_overlap = max(max_overlap, delta)
-            _wall_contact(i, delta, -1.0, 0.0, 0.0, vel, omg, p, force, torque)
-    diag[0] = max_overlap

@@ -93,9 +93,11 @@ def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
         yi = pos[i, 1]
         zi = pos[i, 2]
         cx, cy, cz = _cell_index(xi, yi, zi, p, shape)
-        for ax in range(max(cx - 1, 0), min(cx + 2, ncx)):
-            for ay in range(max(cy - 1, 0), min(cy + 2, ncy)):
-                for az in range(max(cz - 1, 0), min(cz + 2, ncz)):
+        # half stencil: grains are sorted by cell, so every j > i lies in this cell or in the 13
+        # neighbour cells of larger index (the other 13 hold only j < i)
+        for ax in range(cx, min(cx + 2, ncx)):
+            for ay in range(cy if ax == cx else max(cy - 1, 0), min(cy + 2, ncy)):
+                for az in range(cz if ax == cx and ay == cy else max(cz - 1, 0), min(cz + 2, ncz)):
                     c = (ax * ncy + ay) * ncz + az
                     for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
                         if kin[i] and kin[j]:

@@ -8,18 +8,9 @@ import math
 import numba as nb
 
 from . import params as P
-from .contacts import FASTMATH, pair_forces, wall_forces
+from .contacts import FASTMATH, contact_forces
 from .gas import couple
 from .neighbors import build_neighbor_list, sort_and_compact
-
-
-@nb.njit(cache=True, fastmath=FASTMATH)
-def compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag):
-    """Zero, then accumulate all contact forces and torques of the first n grains."""
-    force[:n] = 0.0
-    torque[:n] = 0.0
-    pair_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, diag)
-    wall_forces(pos, vel, omg, kin, n, p, force, torque, wall_normal, diag)
 
 
 @nb.njit(cache=True)
@@ -39,13 +30,13 @@ def rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cel
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _kick(vel, omg, force, drag, torque, kin, n, p, half_dt):
-    """Half-step velocity update of the dynamic grains (contacts, gas drag and gravity)."""
-    a = half_dt / p[P.MASS]
-    b = half_dt / p[P.INERTIA]
-    gx = half_dt * p[P.GX]
-    gy = half_dt * p[P.GY]
-    gz = half_dt * p[P.GZ]
+def _kick(vel, omg, force, drag, torque, kin, n, p, kick_dt):
+    """Velocity update of the dynamic grains by kick_dt (contacts, gas drag and gravity)."""
+    a = kick_dt / p[P.MASS]
+    b = kick_dt / p[P.INERTIA]
+    gx = kick_dt * p[P.GX]
+    gy = kick_dt * p[P.GY]
+    gz = kick_dt * p[P.GZ]
     rotate = p[P.ROTATION] > 0.0
     for i in range(n):
         if kin[i]:
@@ -60,14 +51,22 @@ def _kick(vel, omg, force, drag, torque, kin, n, p, half_dt):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters):
-    """Move grains one step; release feed grains fully inside the tube.
+def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, feed_moves, counters):
+    """Kick the dynamic grains by kick_dt, then move all grains one step; release feed grains fully
+    inside the tube. One pass: the closing half kick of a step and the opening one of the next
+    are merged into a single kick of dt.
 
-    Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin or left the tube),
-    and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
+    Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin, left the tube or
+    was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
     dt = p[P.DT]
     r = p[P.RADIUS]
+    a = kick_dt / p[P.MASS]
+    b = kick_dt / p[P.INERTIA]
+    gx = kick_dt * p[P.GX]
+    gy = kick_dt * p[P.GY]
+    gz = kick_dt * p[P.GZ]
+    rotate = p[P.ROTATION] > 0.0
     feed_dx = p[P.FEED_SPEED] * dt if feed_moves else 0.0
     limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
     outlet = p[P.TUBE_LENGTH]
@@ -79,13 +78,24 @@ def _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters):
             if pos[i, 0] >= r:
                 kin[i] = 0
                 counters[P.RELEASED] += 1
+                need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
-            pos[i, 0] += dt * vel[i, 0]
-            pos[i, 1] += dt * vel[i, 1]
-            pos[i, 2] += dt * vel[i, 2]
-            x = pos[i, 0]
-            y = pos[i, 1]
-            z = pos[i, 2]
+            vx = vel[i, 0] + a * (force[i, 0] + drag[i, 0]) + gx
+            vy = vel[i, 1] + a * (force[i, 1] + drag[i, 1]) + gy
+            vz = vel[i, 2] + a * (force[i, 2] + drag[i, 2]) + gz
+            vel[i, 0] = vx
+            vel[i, 1] = vy
+            vel[i, 2] = vz
+            if rotate:
+                omg[i, 0] += b * torque[i, 0]
+                omg[i, 1] += b * torque[i, 1]
+                omg[i, 2] += b * torque[i, 2]
+            x = pos[i, 0] + dt * vx
+            y = pos[i, 1] + dt * vy
+            z = pos[i, 2] + dt * vz
+            pos[i, 0] = x
+            pos[i, 1] = y
+            pos[i, 2] = z
             if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
                 counters[P.STATUS] = P.NONFINITE
                 return 1
@@ -122,37 +132,47 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
              cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
              P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g):
     n = state_n[0]
-    half_dt = 0.5 * p[P.DT]
+    dt = p[P.DT]
+    kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
     taken = 0
     for _ in range(nsteps):
-        _kick(vel, omg, force, drag, torque, kin, n, p, half_dt)
         feed_moves = diag[1] <= p[P.FEED_MAX_OVERLAP]
         if not feed_moves:
             counters[P.STALLED_STEPS] += 1
-        need = _drift(pos, vel, kin, n, pos_ref, p, feed_moves, counters)
+        need = _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, feed_moves,
+                           counters)
         if counters[P.STATUS] != P.OK:
             break
         if need:
             n = rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3,
                         tmpi, nbr_start, nbr, counters)
             if counters[P.OVERFLOW]:
-                break
+                break  # velocities are at the half step: the caller's finish_step completes it
         if p[P.GAS_ON] > 0.0 and counters[P.STEPS] % int(p[P.GAS_INTERVAL]) == 0:
             feed_rate = p[P.FEED_VOLUME_RATE] if feed_moves else 0.0
             couple(pos, vel, n, P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
-                   p[P.DT] * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], feed_rate, drag, False)
-        finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
+                   dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], feed_rate, drag, False)
+        _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
         taken += 1
+        kick_dt = dt
+    if taken == nsteps:
+        _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
 
 
 @nb.njit(cache=True)
-def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
-    """Second half of a step: forces at the new positions, then the closing half kick."""
-    compute_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
+def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
+    """Forces at the new positions; ends a step except for its closing half kick."""
+    contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
     # diag[2]: running maximum overlap (grain-grain, wall, feed) since the last
     # Simulation.reset_max_overlap, so that the run guard sees every step, not only a frame's last
     diag[2] = max(diag[2], diag[0], diag[1])
-    _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])
     counters[P.STEPS] += 1
+
+
+@nb.njit(cache=True)
+def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
+    """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
+    _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
+    _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])
