@@ -155,7 +155,7 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
         _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
         taken += 1
         kick_dt = dt
-    if taken == nsteps:
+    if taken == nsteps and taken > 0:
         _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
