@@ -25,10 +25,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
 import time
 from pathlib import Path
+
+import numpy as np
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -64,9 +65,9 @@ def measure(sims: list[Simulation], chunk: float, rounds: int) -> list[dict]:
     rows = []
     for k, sim in enumerate(sims):
         n = sim.n_particles
-        rows.append({"cpu_s_per_simulated_s": statistics.median(cost[k]),
-                     "cost_ratio_to_first": statistics.median(a / b for a, b in zip(cost[k], cost[0])),
-                     "steps_per_rebuild": statistics.mean(interval[k]),
+        rows.append({"cpu_s_per_simulated_s": float(np.median(cost[k])),
+                     "cost_ratio_to_first": float(np.median(np.divide(cost[k], cost[0]))),
+                     "steps_per_rebuild": float(np.mean(interval[k])),
                      "list_entries_per_grain": float(sim._nbr_start[int(sim._n[0])]) / max(n, 1),
                      "grains": n, "cpu_s_all": cost[k]})
     return rows

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
+# appended, not prepended: workflow/scripts/statistics.py must not shadow the standard library
+sys.path.append(str(ROOT / "workflow" / "scripts"))
 import validation  # noqa: E402
 from _helpers import write_table  # noqa: E402
 
