@@ -70,20 +70,30 @@ def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
 
 
 class Progress:
-    """A terminal progress bar (tqdm) or nothing in quiet mode."""
+    """Progress of a run: a tqdm bar on a terminal; otherwise (quiet, or output to a log file) an
+    INFO line every `log_interval` seconds of wall time, so that a workflow job's log shows it."""
 
-    def __init__(self, total: float, quiet: bool, initial: float = 0.0):
+    def __init__(self, total: float, quiet: bool, initial: float = 0.0, log_interval: float = 60.0):
         self.bar = None
-        if not quiet:
+        self.total, self.done, self.log_interval = total, initial, log_interval
+        self.started = self.last_log = time.monotonic()
+        if not quiet and sys.stderr.isatty():
             from tqdm import tqdm
             self.bar = tqdm(total=round(total, 6), initial=round(initial, 6), unit="s(sim)",
                             bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} s [{elapsed}<{remaining}] {postfix}",
-                            file=sys.stderr, disable=not sys.stderr.isatty())
+                            file=sys.stderr)
 
     def update(self, sim: Simulation, step: float) -> None:
+        self.done += step
         if self.bar is not None:
             self.bar.update(step)
             self.bar.set_postfix_str(f"grains {sim.n_particles}, dp {sim.pressure_drop / 100:.1f} hPa")
+            return
+        now = time.monotonic()
+        if now - self.last_log >= self.log_interval:
+            self.last_log = now
+            log.info("t = %.2f of at most %.2f s simulated, %d grains, pressure drop %.1f hPa, %.0f s wall",
+                     self.done, self.total, sim.n_particles, sim.pressure_drop / 100, now - self.started)
 
     def close(self) -> None:
         if self.bar is not None:

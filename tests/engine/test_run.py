@@ -264,3 +264,22 @@ def test_warm_start_from_a_different_tube_is_refused_before_any_step(tmp_path):
                   "--set", "tube.diameter=0.008", *sum((["--set", s] for s in SHORT[:-4]), []))
     assert res.returncode == 2 and "tube.diameter" in res.stderr
     assert not (tmp_path / "x.nc").exists()
+
+
+def test_progress_is_logged_when_there_is_no_terminal(caplog):
+    """A workflow job (quiet, stderr to a file) logs progress lines at the wall-time interval."""
+    from types import SimpleNamespace
+
+    from engine.run import Progress
+
+    sim = SimpleNamespace(n_particles=1234, pressure_drop=2500.0)
+    with caplog.at_level("INFO", logger="plugsim"):
+        every_update = Progress(total=1.0, quiet=True, initial=0.25, log_interval=0.0)
+        every_update.update(sim, 0.25)
+        every_update.update(sim, 0.25)
+        rarely = Progress(total=1.0, quiet=True, log_interval=3600.0)
+        rarely.update(sim, 0.5)
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 2
+    assert lines[0].startswith("t = 0.50 of at most 1.00 s simulated, 1234 grains, pressure drop 25.0 hPa")
+    assert lines[1].startswith("t = 0.75 of at most 1.00 s")
