@@ -167,6 +167,10 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Steady when the batch-means standard error of the mean pressure drop (10 batches) is "
         "below this fraction of the mean and the grains in the tube agree within this fraction "
         "between the window's halves.", low=0.0, low_open=True, high=1.0),
+    Key("run.steady_throughput_ratio", 3.0, "1",
+        "Steady only when the grain mass entering and the mass leaving the tube during the window "
+        "agree within this factor (a tube still filling or draining does not); nothing in and "
+        "nothing out (a blocked tube) agrees.", low=1.0, high=1e6),
     Key("run.checkpoint_interval", 600.0, "s (wall)",
         "Wall-clock seconds between checkpoints of a running case (0: never).", low=0.0, high=1e6),
     Key("output.interval", 0.01, "s", "Simulated time between output frames (time series and slices).",

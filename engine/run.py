@@ -47,7 +47,9 @@ def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
     standard error of its mean pressure drop is below run.steady_rel_error of the mean, and the
     mean number of grains in the tube differs by less than that fraction between its first and
     second half (the batch-means error does not see a slow drift of the hold-up, e.g. a warm start
-    still adjusting). The earliest steady candidate is returned.
+    still adjusting), and the grain mass that entered during the window and the mass that left
+    agree within the factor run.steady_throughput_ratio (the half-means test alone passes a large
+    hold-up that still fills at a third of the feed rate). The earliest steady candidate is returned.
     """
     t = np.asarray(recorder.times)
     out = np.asarray(recorder.series["mass_out"])
@@ -57,8 +59,14 @@ def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
     length, tol = case["run.steady_min_window"], case["run.steady_rel_error"]
     dp = np.asarray(recorder.series["pressure_drop"])
     grains = np.asarray(recorder.series["n_particles"], dtype=float)
+    into = np.asarray(recorder.series["mass_in"])
+    ratio = case["run.steady_throughput_ratio"]
     for start in np.arange(first, t[-1] - length + 1e-9, 0.5 * length):
         inside = t >= start
+        k = int(np.argmax(inside))
+        entered, left = into[-1] - into[k], out[-1] - out[k]
+        if entered > ratio * left or left > ratio * entered:
+            continue
         mean, error = batch_means_error(dp[inside])
         if not (mean > 0 and error < tol * mean):
             continue
