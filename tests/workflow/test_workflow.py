@@ -136,6 +136,49 @@ def test_warm_started_sweep_depends_on_its_source_case(tmp_path):
     assert "results/cases/" not in inputs["results/cases/h_default/base.nc"]  # the source runs cold
 
 
+def test_warm_start_from_next_chains_points_within_a_sweep(tmp_path):
+    """The lowest velocity starts from the next one's final grains, at either mass flow; the others
+    from the sweep's warm_start case."""
+    work = scratch(tmp_path)
+    (work / "config/chain.yaml").write_text(yaml.safe_dump({"sweeps": {"h_chain": {
+        "base": "config/cases/horizontal.yaml",
+        "overrides": {"run.duration": 20.0},
+        "warm_start": {"sweep": "h_default"},
+        "warm_start_from_next": {"gas.superficial_velocity": [0.15]},
+        "parameters": {"gas.superficial_velocity": [0.15, 0.25, 1.0],
+                       "feed.mass_flow_kg_h": [2.49, {"feed.mass_flow_kg_h": 9.95,
+                                                      "feed.entry_velocity": 0.16}]}}}},
+                                                     sort_keys=False))  # point names follow this order
+    run = snakemake("results/curves/h_chain.csv", "-n", "--cores", "2", "--configfile",
+                    "config/chain.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr + run.stdout
+    jobs = re.findall(r"rule simulate:\n\s+input: ([^\n]*)\n\s+output: ([^\n]*)", run.stdout + run.stderr)
+    inputs = {out.strip(): inp for inp, out in jobs}
+    point = "results/cases/h_chain/gas.superficial_velocity~{}_feed.mass_flow_kg_h~{}.nc"
+    for mdot in ("2.49", "9.95"):
+        assert point.format("0.25", mdot) in inputs[point.format("0.15", mdot)]
+        assert "h_default/base.nc" not in inputs[point.format("0.15", mdot)]
+        for vs in ("0.25", "1"):
+            assert "results/cases/h_default/base.nc" in inputs[point.format(vs, mdot)]
+
+
+@pytest.mark.parametrize("chain, message", [
+    ({"gas.viscosity": [0.15]}, "'gas.viscosity' is not one of its parameters"),
+    ({"gas.superficial_velocity": [1.0]}, "must be one of its values except the last, [0.15, 0.25]"),
+    ({"gas.superficial_velocity": [0.2]}, "gas.superficial_velocity = 0.2"),
+])
+def test_warm_start_from_next_refuses_a_value_without_a_next_point(tmp_path, chain, message):
+    work = scratch(tmp_path)
+    (work / "config/chain.yaml").write_text(yaml.safe_dump({"sweeps": {"h_chain": {
+        "base": "config/cases/horizontal.yaml",
+        "warm_start_from_next": chain,
+        "parameters": {"gas.superficial_velocity": [0.15, 0.25, 1.0]}}}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/chain.yaml", cwd=work)
+    assert run.returncode != 0
+    assert message in run.stderr + run.stdout
+    assert not (work / "results").exists()
+
+
 def test_typo_in_a_case_key_fails_before_any_job(tmp_path):
     work = scratch(tmp_path)
     (work / "config/typo.yaml").write_text(yaml.safe_dump({"sweeps": {"bad": {

@@ -131,7 +131,8 @@ def _build(sweep, point, overrides):
 
 
 # warm starts: a sweep's `warm_start` names the case whose final grains start its points (the
-# point that is that case itself runs from an empty tube)
+# point that is that case itself runs from an empty tube); `warm_start_from_next` starts some points
+# from their neighbour in the same sweep instead
 WARM_SOURCE = {}  # (sweep, point) -> (sweep, point) of the case file it starts from
 for _sweep, _spec in SWEEPS.items():
     if _spec.get("warm_start"):
@@ -142,6 +143,12 @@ for _sweep, _spec in SWEEPS.items():
         for _point in POINTS[_sweep]:
             if (_sweep, _point) != _src:
                 WARM_SOURCE[(_sweep, _point)] = _src
+    try:
+        _next = sw.next_point_sources(_sweep, _spec, POINTS[_sweep])
+    except sw.SweepError as err:
+        raise ValueError(f"config: {err}") from None
+    for _point, _source in _next.items():  # chains within a sweep; the last value ends each chain
+        WARM_SOURCE[(_sweep, _point)] = (_sweep, _source)
 
 DERIVED = ("output.snapshots", "run.until_steady")
 _groups = defaultdict(list)  # identity of the case (without derived keys) -> [(sweep, point)]

@@ -126,6 +126,30 @@ def find_point(sweep: str, points: Mapping[str, Mapping[str, Any]], where: Mappi
                      f"{list(points)}")
 
 
+def next_point_sources(sweep: str, spec: Mapping[str, Any],
+                       points: Mapping[str, Mapping[str, Any]]) -> dict[str, str]:
+    """Warm-start sources of `warm_start_from_next`: point -> the point with the next value of the
+    named parameter (the other parameters equal). Raises SweepError naming the key and the values."""
+    parameters = spec.get("parameters") or {}
+    sources: dict[str, str] = {}
+    for name, values in (spec.get("warm_start_from_next") or {}).items():
+        if name not in parameters:
+            raise SweepError(f"sweep {sweep!r}: warm_start_from_next: {name!r} is not one of its "
+                             f"parameters {list(parameters)}")
+        levels = [level[name] for level in _levels(name, parameters[name], sweep)]
+        for value in values:
+            index = next((i for i, level in enumerate(levels) if _equal(level, value)), None)
+            if index is None or index == len(levels) - 1:
+                raise SweepError(f"sweep {sweep!r}: warm_start_from_next: {name} = {value!r} must be "
+                                 f"one of its values except the last, {levels[:-1]}")
+            for point, overrides in points.items():
+                if _equal(overrides[name], value):
+                    where = {key: overrides[key] for key in parameters}
+                    where[name] = levels[index + 1]
+                    sources[point] = find_point(sweep, points, where)
+    return sources
+
+
 def derived_overrides(needs: set[str]) -> dict[str, Any]:
     """Outputs a case needs from its consumers: snapshots only for snapshot figures; stop when
     steady when every consumer uses only the steady mean."""
