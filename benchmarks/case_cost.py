@@ -9,10 +9,13 @@ Each variant is the case with its `--variant` overrides (space-separated key=val
 as it is), started from the grains at the end of the case file CASE_FILE.nc (a warm start, so the
 tube is in steady flow rather than filling) and advanced 5 ms to settle. The variants are then
 advanced by `--chunk` simulated seconds in turn, `--rounds` times (interleaved in one process, so
-that a load change hits every variant alike). Reported per variant: the median CPU seconds of the
-timing thread per simulated second (what an idle core takes as wall time), the median per-round
-cost ratio to the first variant, the mean number of steps between neighbour-list rebuilds and the
-list entries per grain. The gas, the feed and the outlet are on, as in the case itself.
+that a load change hits every variant alike). A variant may set `threads=N` (not a case key: the
+contact forces on N threads; time threaded variants one per process: interleaved with a one-thread
+variant they lose most of their gain, docs/performance.md "Threads"). Reported per variant: the
+median CPU seconds of the process per simulated second (all threads; one thread: what an idle core
+takes as wall time) and the median wall seconds, each with its median per-round ratio to the first
+variant, the mean number of steps between neighbour-list rebuilds and the list entries per grain.
+The gas, the feed and the outlet are on, as in the case itself.
 
 The default cases from their own 30 s states (docs/performance.md):
 
@@ -31,7 +34,6 @@ from pathlib import Path
 
 import numpy as np
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from engine import Case, Simulation  # noqa: E402
@@ -42,9 +44,12 @@ SETTLE = 0.005  # s advanced before timing: compiles the kernels and lets the wa
 
 
 def prepare(case_file: str, initial_state: str, variant: str) -> Simulation:
-    """The case with the variant's overrides, started from the grains of `initial_state`."""
-    case = Case.from_yaml(case_file, variant.split())
-    sim = Simulation(case)
+    """The case with the variant's overrides (`threads=N`: N threads for the contact forces),
+    started from the grains of `initial_state`."""
+    tokens = variant.split()
+    threads = [int(t.split("=", 1)[1]) for t in tokens if t.startswith("threads=")]
+    case = Case.from_yaml(case_file, [t for t in tokens if not t.startswith("threads=")])
+    sim = Simulation(case, threads[-1] if threads else 1)
     sim.add_particles(*read_initial_state(initial_state, case))
     sim.advance(SETTLE)
     return sim
@@ -53,23 +58,27 @@ def prepare(case_file: str, initial_state: str, variant: str) -> Simulation:
 def measure(sims: list[Simulation], chunk: float, rounds: int) -> list[dict]:
     """Interleaved timing: per simulation the CPU s per simulated s and rebuild interval of each round."""
     cost = [[] for _ in sims]
+    wall = [[] for _ in sims]
     interval = [[] for _ in sims]
     for _ in range(rounds):
         for k, sim in enumerate(sims):
             before = sim._counters.copy()
-            start = time.thread_time()
+            start, cpu = time.perf_counter(), time.process_time()
             sim.advance(chunk)
-            cost[k].append((time.thread_time() - start) / chunk)
+            cost[k].append((time.process_time() - cpu) / chunk)
+            wall[k].append((time.perf_counter() - start) / chunk)
             done = sim._counters - before
             interval[k].append(done[P.STEPS] / max(done[P.REBUILDS], 1))
     rows = []
     for k, sim in enumerate(sims):
         n = sim.n_particles
         rows.append({"cpu_s_per_simulated_s": float(np.median(cost[k])),
+                     "wall_s_per_simulated_s": float(np.median(wall[k])),
                      "cost_ratio_to_first": float(np.median(np.divide(cost[k], cost[0]))),
+                     "wall_ratio_to_first": float(np.median(np.divide(wall[k], wall[0]))),
                      "steps_per_rebuild": float(np.mean(interval[k])),
                      "list_entries_per_grain": float(sim._nbr_start[int(sim._n[0])]) / max(n, 1),
-                     "grains": n, "cpu_s_all": cost[k]})
+                     "grains": n, "cpu_s_all": cost[k], "wall_s_all": wall[k]})
     return rows
 
 
@@ -90,11 +99,13 @@ def main(argv: list[str] | None = None) -> int:
     sims = [prepare(args.case, args.initial_state, v) for v in variants]
     rows = measure(sims, args.chunk, args.rounds)
     print(f"{Path(args.case).name} from {args.initial_state}: {args.rounds} interleaved pieces of "
-          f"{args.chunk} s per variant, one thread, CPU time of the timing thread")
-    print(f"{'variant':40s} {'CPU s/sim s':>11s} {'ratio':>6s} {'steps/rebuild':>13s} {'entries/grain':>13s} {'grains':>6s}")
+          f"{args.chunk} s per variant; CPU time of the process (all threads) and wall time")
+    print(f"{'variant':40s} {'CPU s/sim s':>11s} {'ratio':>6s} {'wall s/sim s':>12s} {'ratio':>6s} "
+          f"{'steps/rebuild':>13s} {'entries/grain':>13s} {'grains':>6s}")
     for variant, row in zip(variants, rows):
         row["variant"] = variant
         print(f"{variant or '(case as is)':40s} {row['cpu_s_per_simulated_s']:11.1f} {row['cost_ratio_to_first']:6.3f} "
+              f"{row['wall_s_per_simulated_s']:12.1f} {row['wall_ratio_to_first']:6.3f} "
               f"{row['steps_per_rebuild']:13.1f} {row['list_entries_per_grain']:13.2f} {row['grains']:6d}")
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=1))

@@ -21,8 +21,8 @@ Each packing is timed through Simulation.advance for a fixed number of steps (me
 repeats, which are interleaved across all packings so a load change hits every N alike, after a
 warm-up so that no compile time is counted), with the gas off and with the gas on (defaults:
 v_s = 1 m/s, updated every 10 steps) on a grid of ~3.5 mm cells: gas.nodes_x = round(L / 3.5 mm),
-nodes_y = nodes_z = max(2, round(D / 3.5 mm)). Feed off. One thread (NUMBA_NUM_THREADS=1 unless
-set). Both the wall time and the CPU time of the timing thread are recorded: on a loaded machine the
+nodes_y = nodes_z = max(2, round(D / 3.5 mm)). Feed off. One thread (the engine's
+default). Both the wall time and the CPU time of the timing thread are recorded: on a loaded machine the
 wall time includes the time the thread waited for a core; the CPU time is what an idle core would
 take. Memory: peak resident set size (VmHWM) of a fresh process that builds the gas-on case and
 runs 20 steps, and the engine's own arrays (sum of their nbytes).
@@ -50,14 +50,12 @@ import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+import numpy as np
+from scipy.spatial import cKDTree
 
-import numpy as np  # noqa: E402
-from scipy.spatial import cKDTree  # noqa: E402
-
-from engine import Case, Simulation  # noqa: E402
-from engine.bench import PLUG_LENGTH, PLUG_START, TARGET_GRAINS, stack_layers  # noqa: E402
-from engine.feed import layer_template  # noqa: E402
+from engine import Case, Simulation
+from engine.bench import PLUG_LENGTH, PLUG_START, TARGET_GRAINS, stack_layers
+from engine.feed import layer_template
 
 STANDARD_LENGTH = 0.525                      # m, the standard case's tube (engine.bench)
 PLUG_FROM = PLUG_START / STANDARD_LENGTH     # plug from 38.1 % ...

@@ -35,8 +35,8 @@ borderline case (a column heating up at the edge of the accepted time step) can 
 of a check in the two loops; its outcome here is one sample, the heating itself is systematic.
 
 Writes OUT/stability.csv (one row per case), OUT/stability.md (the table and a headline) and
-OUT/stability.png (the map: one row per axis, one marker per case coloured by outcome). Run it on one
-thread (NUMBA_NUM_THREADS=1 is set unless given). Exit status: 0 no silent failure, 1 otherwise.
+OUT/stability.png (the map: one row per axis, one marker per case coloured by outcome). Every case runs
+on one thread (the engine's default). Exit status: 0 no silent failure, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -53,14 +53,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+import numpy as np
+from scipy.spatial import cKDTree
 
-import numpy as np  # noqa: E402
-from scipy.spatial import cKDTree  # noqa: E402
-
-from engine import Case, CaseError, Simulation, SimulationError  # noqa: E402
-from engine.contact import ContactModel  # noqa: E402
-from engine.run import MAX_OVERLAP, RunError, _check_health  # noqa: E402
+from engine import Case, CaseError, Simulation, SimulationError
+from engine.contact import ContactModel
+from engine.run import MAX_OVERLAP, RunError, _check_health
 
 REPO = Path(__file__).resolve().parents[1]
 BASES = {"horizontal": REPO / "config/cases/horizontal.yaml", "vertical": REPO / "config/cases/vertical.yaml"}

@@ -61,11 +61,13 @@ def stack_layers(xs, full, template, per_layer: int, d: float, rng) -> np.ndarra
     return np.vstack(layers)
 
 
-def settled_simulation(*overrides: str, settle_time: float = 0.05) -> Simulation:
-    """The standard case after letting the bed settle under gravity."""
+def settled_simulation(*overrides: str, settle_time: float = 0.05, threads: int = 1) -> Simulation:
+    """The standard case after letting the bed settle under gravity (on one thread, so that the
+    packing is the same for any `threads`, which then applies to the timed steps)."""
     sim = Simulation(standard_case(*overrides))
     sim.add_particles(standard_packing(sim.case))
     sim.advance(settle_time)
+    sim.set_threads(threads)
     return sim
 
 
@@ -182,9 +184,9 @@ def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads:
     """Build, settle and time the standard case; returns the numbers it prints."""
     import numba
     numba.set_num_threads(threads)
-    sim = settled_simulation()
+    sim = settled_simulation(threads=threads)
     rates = measure_rate(sim, steps, repeats)
-    result = {"grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),
+    result = {"threads": threads, "grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),
               "time_step_s": sim.dt, "steps_per_repeat": steps, "repeats": repeats,
               "particle_steps_per_s_median": statistics.median(rates),
               "particle_steps_per_s_all": [round(r) for r in rates],
@@ -200,12 +202,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5, help="repeats; the median is reported")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time measurement")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--threads", type=int, default=1,
+                        help="threads for the contact forces of the timed steps (default 1)")
     parser.add_argument("--gas", action="store_true",
                         help="also time the same packing with the gas on and split the cost per step")
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
-    result = run(args.steps, args.repeats, not args.no_compile)
+    result = run(args.steps, args.repeats, not args.no_compile, args.threads)
     if args.gas:
         result["gas"] = gas_cost_split(args.steps, args.repeats)
     if args.write_lammps:
@@ -220,7 +224,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"grains                 {result['grains']}")
         print(f"contacts per grain     {result['contacts_per_grain']:.2f} (walls included)")
         print(f"particle-steps per s   {result['particle_steps_per_s_median']:.3e} "
-              f"(median of {args.repeats} x {args.steps} steps, one thread)")
+              f"(median of {args.repeats} x {args.steps} steps, "
+              f"{args.threads} thread{'s' if args.threads > 1 else ''})")
         print(f"wall s per simulated s {result['wall_s_per_simulated_s']:.1f} (dt = {result['time_step_s']:.3g} s)")
         if "gas" in result:
             g = result["gas"]

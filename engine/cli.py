@@ -40,12 +40,18 @@ def _run(args: argparse.Namespace) -> int:
     import logging
 
     from .run import InitialStateError, RunError, run_case
+    from .simulation import check_threads
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="plugsim: %(message)s")
     case = Case.from_yaml(args.case, args.set)
     try:
-        run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state)
+        check_threads(args.threads)
+    except ValueError as err:
+        print(f"plugsim: error: --threads: {err}", file=sys.stderr)
+        return 2
+    try:
+        run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state, threads=args.threads)
     except InitialStateError as err:  # refused before any step
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
@@ -80,6 +86,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--initial-state", metavar="FROM.nc", default=None,
                    help="warm start: begin with the grains at the end of another case file "
                         "(same grains and tube diameter) instead of an empty tube")
+    p.add_argument("--threads", type=int, default=1,
+                   help="threads for the contact forces (default 1; 2 run a horizontal case ~1.5x "
+                        "faster on 2 idle cores, a vertical one ~1.1x, docs/performance.md; results "
+                        "differ from 1 thread by rounding only)")
     p.set_defaults(func=_run)
     p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
     p.set_defaults(func=_bench)

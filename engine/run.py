@@ -15,7 +15,7 @@ import numpy as np
 
 from .case import Case
 from .output import Recorder, batch_means_error, global_attributes, write_atomically
-from .simulation import Simulation, SimulationError
+from .simulation import Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
 
@@ -147,10 +147,13 @@ def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.nda
     return pos[keep], vel[keep], omg[keep]
 
 
-def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None) -> Path:
+def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None,
+             threads: int = 1) -> Path:
     """Run `case` from an empty tube, or from the grains at the end of the case file
-    `initial_state` (warm start), or from its checkpoint, and write the case file `out`."""
+    `initial_state` (warm start), or from its checkpoint, and write the case file `out`.
+    `threads`: numba threads for the contact forces (a resumed run keeps its checkpoint's)."""
     out = Path(out)
+    check_threads(threads)
     start = read_initial_state(initial_state, case) if initial_state else None
     digest = case_digest(case) + (f":{Path(initial_state).resolve()}" if initial_state else "")
     ckpt = checkpoint_path(out)
@@ -159,7 +162,7 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
         sim, recorder = resumed
         log.info("resuming %s from t = %.3f s", out, sim.time)
     else:
-        sim, recorder = Simulation(case), Recorder(case)
+        sim, recorder = Simulation(case, threads), Recorder(case)
         if start is not None:
             sim.add_particles(*start)
             log.info("warm start from %s: %d grains", initial_state, len(start[0]))
@@ -201,6 +204,7 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
              # CPU time of the same part: the cost measure of the work-precision study (less
              # sensitive than wall time to other jobs sharing the machine)
              "cpu_time_s": time.process_time() - cpu_started,
+             "threads": sim.threads,
              "initial_state": str(initial_state or ""),
              "initial_particles": 0 if start is None else len(start[0]),
              # mass in the tube = initial_mass + mass_in - mass_out

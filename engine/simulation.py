@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from .case import Case
@@ -13,10 +14,19 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import params as P
 from .kernels import slices as S
-from .kernels.contacts import contact_forces
+from .kernels.contacts import evaluate_contacts
 from .kernels.stepper import advance, finish_step, rebuild
 
 PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
+
+
+def check_threads(threads: int) -> int:
+    """threads, if numba can run that many (1 to NUMBA_NUM_THREADS); ValueError naming the limit."""
+    limit = numba.config.NUMBA_NUM_THREADS
+    if not isinstance(threads, (int, np.integer)) or not 1 <= threads <= limit:
+        raise ValueError(f"threads = {threads!r}: allowed 1 to {limit} (NUMBA_NUM_THREADS, by default the "
+                         "number of cores)")
+    return int(threads)
 
 
 class SimulationError(RuntimeError):
@@ -28,9 +38,12 @@ class Simulation:
 
     Arrays returned by `positions`, `velocities` and `angular_velocities` are (n, 3) copies in SI
     units, ordered by grain id (the order of insertion), holding only grains inside the tube.
+    `threads` > 1 computes the contact forces in that many chunks on numba threads: results are
+    reproducible for a given thread count and differ from one thread's by rounding only.
     """
 
-    def __init__(self, case: Case):
+    def __init__(self, case: Case, threads: int = 1):
+        self.threads = check_threads(threads)
         self.case = case
         self.model = ContactModel.from_case(case)
         self.feed = Feed(case, self.model.mass, case["run.seed"])
@@ -116,7 +129,20 @@ class Simulation:
         self.__dict__.update(arrays)
         self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
         self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
+        self._chunks = self._chunk_arrays(cap)
         self._dirty = True
+
+    def _chunk_arrays(self, cap: int) -> tuple:
+        """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
+        rows = cap if self.threads > 1 else 1
+        return (np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 3)),
+                np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
+                np.zeros(rows, dtype=np.int64))
+
+    def set_threads(self, threads: int) -> None:
+        """Compute the contact forces on `threads` numba threads from now on."""
+        self.threads = check_threads(threads)
+        self._chunks = self._chunk_arrays(len(self._pos))
 
     @property
     def gravity(self) -> np.ndarray:
@@ -178,8 +204,9 @@ class Simulation:
     def _prepare(self) -> None:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
-        contact_forces(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
-                       self._nbr, self._p, self._force, self._torque, self._wall_normal, self._diag)
+        evaluate_contacts(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
+                          self._nbr, self._p, self._force, self._torque, self._wall_normal, self._diag,
+                          self._chunks)
         self._dirty = False
 
     def _rebuild(self) -> None:
@@ -202,6 +229,8 @@ class Simulation:
         # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
         speed = self._p[P.FEED_SPEED]
         chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
+        if self.threads > 1:
+            numba.set_num_threads(self.threads)
         while remaining > 0:
             steps = min(chunk, remaining)
             feed_travel = speed * steps * self.dt
@@ -211,14 +240,14 @@ class Simulation:
             taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._drag,
                             self._torque, self._wall_normal, self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
                             self._cell_of, self._order, self._tmp3, self._tmpi, self._nbr_start,
-                            self._nbr, self._counters, self._diag, self._gas_arrays())
+                            self._nbr, self._counters, self._diag, self._gas_arrays(), self._chunks)
             if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
                             self._wall_normal, self._kin,
                             int(self._n[0]), self._nbr_start, self._nbr, self._p, self._counters,
-                            self._diag)
+                            self._diag, self._chunks)
                 taken += 1
             self._steps += taken
             remaining -= taken

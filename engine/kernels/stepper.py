@@ -8,7 +8,7 @@ import math
 import numba as nb
 
 from . import params as P
-from .contacts import FASTMATH, contact_forces
+from .contacts import FASTMATH, evaluate_contacts
 from .gas import couple
 from .neighbors import build_neighbor_list, sort_and_compact
 
@@ -114,23 +114,24 @@ def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt,
 
 @nb.njit(cache=True)
 def advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
-            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag, gas):
+            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag, gas, chunks):
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
     diag[1] (max feed overlap of the last force evaluation) pauses the feed piston. `gas` is the
-    tuple of gas arrays (P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g).
+    tuple of gas arrays (P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g);
+    `chunks` the thread work arrays of evaluate_contacts.
     """
     return _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref,
                     p, shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
                     gas[0], gas[1], gas[2], gas[3], gas[4], gas[5], gas[6], gas[7], gas[8], gas[9],
-                    gas[10], gas[11], gas[12])
+                    gas[10], gas[11], gas[12], chunks)
 
 
 @nb.njit(cache=True)
 def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
              cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
-             P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g):
+             P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g, chunks):
     n = state_n[0]
     dt = p[P.DT]
     kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
@@ -152,7 +153,7 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
             feed_rate = p[P.FEED_VOLUME_RATE] if feed_moves else 0.0
             couple(pos, vel, n, P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
                    dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], feed_rate, drag, False)
-        _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
+        _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks)
         taken += 1
         kick_dt = dt
     if taken == nsteps and taken > 0:
@@ -162,9 +163,9 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
 
 
 @nb.njit(cache=True)
-def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
+def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks):
     """Forces at the new positions; ends a step except for its closing half kick."""
-    contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
+    evaluate_contacts(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag, chunks)
     # diag[2]: running maximum overlap (grain-grain, wall, feed) since the last
     # Simulation.reset_max_overlap, so that the run guard sees every step, not only a frame's last
     diag[2] = max(diag[2], diag[0], diag[1])
@@ -172,7 +173,8 @@ def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p
 
 
 @nb.njit(cache=True)
-def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag):
+def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag,
+                chunks):
     """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
-    _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag)
+    _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks)
     _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])

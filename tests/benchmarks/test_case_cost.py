@@ -49,3 +49,14 @@ def test_skin_trades_rebuilds_for_list_entries(case_cost, state, tmp_path):
 def test_bad_arguments_stop_before_any_work(case_cost, tmp_path):
     with pytest.raises(SystemExit):
         case_cost.main([str(ROOT / "config/cases/vertical.yaml"), "--initial-state", "x.nc", "--chunk", "0"])
+
+
+def test_a_variant_can_set_the_thread_count(case_cost, state, tmp_path):
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs 2 numba threads")
+    case = tmp_path / "small.yaml"
+    case.write_text(Case.from_yaml(ROOT / "config/cases/vertical.yaml", SMALL).to_yaml())
+    sims = [case_cost.prepare(str(case), str(state), v) for v in ("", "threads=2 numerics.neighbor_skin=0.6")]
+    assert [s.threads for s in sims] == [1, 2]
+    assert sims[1].case["numerics.neighbor_skin"] == 0.6

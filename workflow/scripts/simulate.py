@@ -15,7 +15,9 @@ def main(smk) -> None:
     import numba
 
     # numba reads NUMBA_NUM_THREADS, not the OMP_* variables Snakemake sets: cap it to the job's threads
-    numba.set_num_threads(max(1, min(int(smk.threads), numba.config.NUMBA_NUM_THREADS)))
+    # (1 in the rule: cases run side by side; `snakemake --set-threads simulate=2` threads each case)
+    threads = max(1, min(int(smk.threads), numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(threads)
     from engine.case import Case
     from engine.run import run_case
 
@@ -26,7 +28,7 @@ def main(smk) -> None:
     initial_state = smk.input.get("initial_state")
     if initial_state:
         log.info("warm start from %s", initial_state)
-    run_case(case, smk.output.case, quiet=True, initial_state=initial_state)
+    run_case(case, smk.output.case, quiet=True, initial_state=initial_state, threads=threads)
     log.info("wrote %s in %.1f s wall", smk.output.case, time.perf_counter() - start)
 
 
