@@ -182,8 +182,6 @@ def _timed(call) -> float:
 
 def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1) -> dict:
     """Build, settle and time the standard case; returns the numbers it prints."""
-    import numba
-    numba.set_num_threads(threads)
     sim = settled_simulation(threads=threads)
     rates = measure_rate(sim, steps, repeats)
     result = {"threads": threads, "grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),

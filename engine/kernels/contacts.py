@@ -213,6 +213,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
             txi += tx
             tyi += ty
             tzi += tz
+            # written out twice on purpose: an inlined helper measured slower on threads (docs/performance.md)
             if j < hi:
                 force[j, 0] -= fx
                 force[j, 1] -= fy

@@ -14,10 +14,9 @@ def main(smk) -> None:
     log = setup_logging(smk)
     import numba
 
-    # numba reads NUMBA_NUM_THREADS, not the OMP_* variables Snakemake sets: cap it to the job's threads
-    # (1 in the rule: cases run side by side; `snakemake --set-threads simulate=2` threads each case)
+    # The job's threads (1 in the rule: cases run side by side; `snakemake --set-threads simulate=2`
+    # threads each case's contact forces), capped to what numba can run (NUMBA_NUM_THREADS)
     threads = max(1, min(int(smk.threads), numba.config.NUMBA_NUM_THREADS))
-    numba.set_num_threads(threads)
     from engine.case import Case
     from engine.run import run_case
 
