@@ -45,6 +45,7 @@ rule all:
         [f"results/benchmarks/work_precision.{e}" for e in ("csv", "png", "pdf") if WORK_PRECISION],
         [f"results/benchmarks/scale/scale.{e}" for e in ("csv", "md", "png")],
         [f"results/benchmarks/stability/stability.{e}" for e in ("csv", "md", "png")],
+        [f"results/benchmarks/restitution/restitution.{e}" for e in ("csv", "md", "png")],
 
 
 rule figures:

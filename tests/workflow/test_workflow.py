@@ -252,6 +252,8 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
             assert "snapshot_position" not in ds  # ... and nowhere else
     assert json.loads((work / "results/benchmarks/engine.json").read_text())["grains"] > 0
     assert (work / "results/benchmarks/timings.csv").exists()
+    restitution = pd.read_csv(work / "results/benchmarks/restitution/restitution.csv", keep_default_na=False)
+    assert set(restitution["contact"]) == {"grain-grain", "grain-wall"} and not restitution["refused"].any()
     report = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
     assert report.returncode == 0, report.stderr[-3000:]
     html = (work / "report.html").read_text(errors="replace")

@@ -106,6 +106,33 @@ rule stability:
         "{params.reduced} > {log} 2>&1"
 
 
+rule restitution:
+    """Head-on restitution against the time step over the contact-start phase (benchmarks/
+    restitution.py): the analytic error of the time step; 2 time steps at e = 0.5 when config
+    benchmarks.restitution_reduced is true."""
+    output:
+        csv="results/benchmarks/restitution/restitution.csv",
+        md="results/benchmarks/restitution/restitution.md",
+        png=report("results/benchmarks/restitution/restitution.png", caption="../report/restitution.rst",
+                   category="Benchmarks"),
+    params:
+        python=sys.executable,
+        script=Path(workflow.basedir) / "benchmarks" / "restitution.py",
+        reduced="--reduced" if config.get("benchmarks", {}).get("restitution_reduced", False) else "",
+        engine_version=ENGINE_VERSION,
+    log:
+        "logs/restitution/restitution.log",
+    benchmark:
+        "results/benchmarks/jobs/restitution/restitution.tsv"
+    threads: 1
+    resources:
+        runtime=10,
+        mem_mb=1000,
+    shell:
+        "NUMBA_NUM_THREADS={threads} {params.python} {params.script} --out-dir $(dirname {output.csv}) "
+        "{params.reduced} > {log} 2>&1"
+
+
 onsuccess:
     import timings  # workflow/scripts/timings.py
 
