@@ -25,7 +25,6 @@ import numpy as np
 import pandas as pd
 
 from engine import Case, CaseError, Simulation
-from engine.contact import ContactModel
 
 SPEED = 0.1  # m/s, relative approach speed
 DURATION = 0.03  # s: the approach (2.8 ms) plus many contact times (t_c ~ 60 us)
@@ -40,13 +39,12 @@ def case(fraction: float, restitution: float, wall: bool) -> Case:
                                   f"{key}={restitution}", f"numerics.time_step_fraction={fraction}"])
 
 
-def measured_restitution(fraction: float, restitution: float, phase: float, wall: bool = False) -> float:
-    """Restitution of one head-on collision whose contact starts at `phase` (0..1) of a step."""
-    c = case(fraction, restitution, wall)
-    dt = ContactModel.from_case(c).time_step
-    d = c["particles.diameter"]
+def measured_restitution(c: Case, phase: float, wall: bool = False) -> float:
+    """Restitution of one head-on collision of case `c` whose contact starts at `phase` (0..1) of a
+    step (raises CaseError when the engine refuses the case's time step)."""
     sim = Simulation(c)
-    gap = 0.2 * d + phase * SPEED * dt
+    d = c["particles.diameter"]
+    gap = 0.2 * d + phase * SPEED * sim.dt
     if wall:  # towards the cylinder wall along +z
         sim.add_particles([[0.1, 0.0, c["tube.diameter"] / 2 - d / 2 - gap]], [[0.0, 0.0, SPEED]])
         sim.advance(DURATION)
@@ -68,8 +66,8 @@ def table(fractions, restitutions, phases: int, wall: bool = False) -> pd.DataFr
                    "restitution": e, "error_min": np.nan, "error_max": np.nan, "error_mean": np.nan,
                    "refused": ""}
             try:
-                errors = np.array([measured_restitution(fraction, e, ph, wall) - e
-                                   for ph in np.arange(phases) / phases])
+                c = case(fraction, e, wall)
+                errors = np.array([measured_restitution(c, ph, wall) - e for ph in np.arange(phases) / phases])
                 row.update(error_min=errors.min(), error_max=errors.max(), error_mean=errors.mean())
             except CaseError as err:
                 row["refused"] = str(err)
