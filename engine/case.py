@@ -137,7 +137,7 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("numerics.gas_interval", 10, "1",
         "Grain steps per gas update (the drag is held in between); 1 = every step.", kind=int,
         low=1, high=10000),
-    Key("numerics.time_step_fraction", 0.1, "1",
+    Key("numerics.time_step_fraction", 0.15, "1",
         "Time step as a fraction of the grain-grain contact time t_c (rounded down to divide "
         "output.interval); refused above the stable limit.",
         low=0.0, low_open=True, high=10.0),
