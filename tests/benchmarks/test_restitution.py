@@ -4,7 +4,7 @@ import pandas as pd
 import pytest
 
 from benchmarks.restitution import main, table
-from engine.case import Case
+from engine import Case
 
 
 def test_phase_scatter_is_first_order_in_the_time_step():
