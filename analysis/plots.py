@@ -233,6 +233,7 @@ KNOBS = {  # work-precision knobs -> legend label with unit
     "particles.stiffness": r"stiffness $k_n$ (N/m)",
     "gas.nodes_x": "axial gas nodes",
     "numerics.gas_interval": "grain steps per gas update",
+    "run.seed": "seed only (noise floor)",
 }
 OBSERVABLE_LABELS = {"pressure_drop": "pressure drop", "slug_velocity": "slug velocity",
                      "slug_length": "slug length"}
@@ -243,10 +244,11 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
     each case (one core: its wall time on an otherwise idle machine), from
     analysis.precision.relative_errors tables, one per knob. Filled markers: error resolved (> 2
     combined standard errors); open markers: within that noise, whose one-standard-error level is
-    the dotted line. Dashed grey: twice the run-to-run scatter of all the study's cases. A star
+    the dotted line. Dashed grey: twice the run-to-run scatter (of the seed study when there is
+    one, analysis.precision.run_to_run_scatter); the seed study's points are not joined. A star
     marks each knob's default (`defaults`: parameter -> value); squares at the bottom mark the
     references (error 0)."""
-    from .precision import run_to_run_scatter
+    from .precision import SEED, run_to_run_scatter
 
     fig = Figure(figsize=(11.0, 3.8), layout="constrained")
     axes = fig.subplots(1, len(OBSERVABLE_LABELS), sharex=True)
@@ -261,7 +263,9 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
             t = part["cpu_time_s"].to_numpy(dtype=float)
             err = np.maximum(part[f"{q}_error"].to_numpy(dtype=float), floor)
             resolved = part[f"{q}_resolved"].to_numpy(dtype=bool)
-            line = ax.plot(t, err, "-", lw=0.8, label=KNOBS.get(knob, knob))[0]
+            noise_only = knob == SEED  # seeds are not an axis: points only
+            line = ax.plot(t, err, ls="none" if noise_only else "-", marker="o" if noise_only else None,
+                           mfc="white", ms=5, lw=0.8, label=KNOBS.get(knob, knob))[0]
             color = line.get_color()
             ax.plot(t[resolved], err[resolved], "o", color=color, ms=5)
             ax.plot(t[~resolved], err[~resolved], "o", mfc="white", color=color, ms=5)

@@ -50,11 +50,37 @@ def relative_errors(summaries: pd.DataFrame, parameter: str, reference) -> pd.Da
     return out.sort_values("value").reset_index(drop=True)
 
 
+SEED = "run.seed"  # a study over this "knob" changes nothing numerical: its spread is pure noise
+
+
+def pool_default(summaries: pd.DataFrame, parameter: str, default, seeds: pd.DataFrame) -> pd.DataFrame:
+    """`summaries` with the row at the knob's default replaced by the mean over the seed study's
+    cases (every knob at its default, one run per seed): each observable its mean, its standard
+    error the seeds' standard deviation / sqrt(n), the cost the mean cost. One run of the default,
+    shared by every knob sweep, would put its chance deviation into every sweep's error."""
+    out = summaries.copy()
+    at_default = np.isclose(out[parameter].to_numpy(dtype=float), float(default), rtol=1e-9, atol=0.0)
+    if not at_default.any() or len(seeds) < 2:
+        return out
+    for q, sem in OBSERVABLES.items():
+        x = seeds[q].dropna().to_numpy(dtype=float) if q in seeds else np.array([])
+        mean = float(x.mean()) if len(x) else np.nan
+        error = float(x.std(ddof=1) / np.sqrt(len(x))) if len(x) > 1 else np.nan
+        out.loc[at_default, q] = mean
+        out.loc[at_default, sem] = error
+    for cost in ("wall_time_s", "cpu_time_s"):
+        if cost in seeds and cost in out:
+            out.loc[at_default, cost] = float(seeds[cost].mean())
+    return out
+
+
 def run_to_run_scatter(tables: list[pd.DataFrame]) -> dict[str, float]:
-    """Relative standard deviation (std/mean, ddof=1) of each observable over every distinct case
-    of a study (cases shared by several knob sweeps counted once). When no knob matters, this is
-    the scatter of independent runs, the honest yardstick for the errors."""
-    rows = pd.concat(tables, ignore_index=True)
+    """Relative standard deviation (std/mean, ddof=1) of each observable over independent runs: the
+    cases of the seed study (parameter run.seed, every knob at its default) when there is one, else
+    every distinct case of the study (cases shared by several knob sweeps counted once), which is
+    the same when no knob matters and larger when one does. The honest yardstick for the errors."""
+    seeds = [t for t in tables if len(t) and t["parameter"].iloc[0] == SEED]
+    rows = pd.concat(seeds or tables, ignore_index=True)
     rows = rows.drop_duplicates(subset=[*OBSERVABLES, "cpu_time_s"])
     out = {}
     for q in OBSERVABLES:

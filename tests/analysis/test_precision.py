@@ -55,3 +55,43 @@ def test_run_to_run_scatter_counts_shared_cases_once():
     x = np.array([1010.0, 1000.0, 1100.0])
     assert scatter["pressure_drop"] == pytest.approx(np.std(x, ddof=1) / x.mean())
     assert scatter["slug_length"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_run_to_run_scatter_comes_from_the_seed_study_when_there_is_one():
+    from analysis.precision import run_to_run_scatter
+
+    knob = relative_errors(summaries(), "numerics.time_step_fraction", 0.1)  # a 10 % knob effect
+    seeds = pd.DataFrame({"run.seed": [0, 1, 2], "pressure_drop": [1000.0, 1020.0, 990.0],
+                          "pressure_drop_sem": [10.0] * 3, "slug_velocity": [0.30, 0.31, 0.29],
+                          "slug_velocity_sem": [0.003] * 3, "slug_length": [0.05, 0.05, 0.06],
+                          "slug_length_sem": [0.001] * 3, "cpu_time_s": [19.0, 20.0, 21.0]})
+    seed_table = relative_errors(seeds, "run.seed", 0)
+    scatter = run_to_run_scatter([knob, seed_table])
+    x = np.array([1000.0, 1020.0, 990.0])
+    # the knob's 10 % effect must not widen the noise floor it is judged against
+    assert scatter["pressure_drop"] == pytest.approx(np.std(x, ddof=1) / x.mean())
+    assert scatter["pressure_drop"] < run_to_run_scatter([knob])["pressure_drop"]
+    fig = work_precision([knob, seed_table], {"run.seed": 0})
+    assert "seed only (noise floor)" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+
+
+def test_default_point_is_the_mean_of_the_seed_runs():
+    from analysis.precision import pool_default
+
+    seeds = pd.DataFrame({"run.seed": [0, 1, 2, 3], "pressure_drop": [1100.0, 1000.0, 1020.0, 980.0],
+                          "pressure_drop_sem": [30.0] * 4, "slug_velocity": [0.30] * 4,
+                          "slug_velocity_sem": [0.003] * 4, "slug_length": [0.05] * 4,
+                          "slug_length_sem": [0.001] * 4, "wall_time_s": [20.0] * 4,
+                          "cpu_time_s": [18.0, 20.0, 22.0, 20.0]})
+    rows = summaries()  # knob 0.2 is the default here, a single run at 1100 Pa/m
+    pooled = pool_default(rows, "numerics.time_step_fraction", 0.2, seeds)
+    default = pooled.loc[pooled["numerics.time_step_fraction"] == 0.2].iloc[0]
+    x = np.array([1100.0, 1000.0, 1020.0, 980.0])
+    assert default["pressure_drop"] == pytest.approx(x.mean())
+    assert default["pressure_drop_sem"] == pytest.approx(x.std(ddof=1) / 2.0)
+    assert default["cpu_time_s"] == pytest.approx(20.0)
+    others = pooled.loc[pooled["numerics.time_step_fraction"] != 0.2]
+    pd.testing.assert_frame_equal(others, rows.loc[rows["numerics.time_step_fraction"] != 0.2])
+    # one chance-high default run is no longer a 10 % error against the reference
+    table = relative_errors(pooled, "numerics.time_step_fraction", 0.1)
+    assert table.loc[table["value"] == 0.2, "pressure_drop_error"].iloc[0] == pytest.approx(0.025)

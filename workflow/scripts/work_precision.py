@@ -1,5 +1,8 @@
 """Rule work_precision: error against wall time for each numerical knob (table + figure).
 
+A study over run.seed (the seed study, every knob at its default) is the noise floor: it sets the
+run-to-run scatter, and the default point of every other study is the mean of its runs.
+
 Standalone (params as YAML):
     python workflow/scripts/work_precision.py --output table=/tmp/wp.csv --output png=/tmp/wp.png \
         --params 'studies={wp_time_step: {parameter: numerics.time_step_fraction, reference: 0.0125,
@@ -14,11 +17,17 @@ from _helpers import read_json, save_figure, setup_logging, snakemake_or_cli, wr
 def main(smk) -> None:
     log = setup_logging(smk)
     from analysis.plots import work_precision
-    from analysis.precision import relative_errors, run_to_run_scatter
+    from analysis.precision import SEED, pool_default, relative_errors, run_to_run_scatter
 
+    rows_of = {sweep: pd.DataFrame([read_json(path) for path in study["summaries"]])
+               for sweep, study in smk.params.studies.items()}
+    seeds = next((rows_of[s] for s, study in smk.params.studies.items() if study["parameter"] == SEED), None)
     tables, defaults = [], {}
     for sweep, study in smk.params.studies.items():
-        rows = pd.DataFrame([read_json(path) for path in study["summaries"]])
+        rows = rows_of[sweep]
+        if seeds is not None and study["parameter"] != SEED:
+            # the default point: the mean of the seed study's runs (analysis.precision.pool_default)
+            rows = pool_default(rows, study["parameter"], study["default"], seeds)
         table = relative_errors(rows, study["parameter"], study["reference"])
         table.insert(0, "sweep", sweep)
         table["is_default"] = table["value"].sub(float(study["default"])).abs() <= 1e-9 * abs(float(study["default"]))
