@@ -47,13 +47,16 @@ def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cel
         cell_start[c + 1] += 1
     for c in range(ncells):
         cell_start[c + 1] += cell_start[c]
-    # counting sort: order[new] = old
-    fill = cell_start[:ncells].copy()
+    # counting sort: order[new] = old, with cell_start as the fill pointers (no allocation in the
+    # time loop): afterwards cell_start[c] holds the end of cell c, so shift it back by one cell
     for i in range(n):
         c = cell_of[i]
         if c >= 0:
-            order[fill[c]] = i
-            fill[c] += 1
+            order[cell_start[c]] = i
+            cell_start[c] += 1
+    for c in range(ncells, 0, -1):
+        cell_start[c] = cell_start[c - 1]
+    cell_start[0] = 0
     m = n - n_removed
     for arr in (pos, vel, omg, drag):  # drag is held between gas updates: it moves with its grain
         for k in range(m):
