@@ -64,6 +64,8 @@ def test_table_and_summary_count_the_saving(st, tmp_path):
     assert summary.loc[0.03, "saved_cpu_s"] == pytest.approx(0.0, abs=1e-9)
     assert summary.loc[0.05, "saved_cpu_s"] == pytest.approx(100.0 * (1 - stop5 / ran["time"].values[-1]))
     assert summary.loc[0.03, "dp_change_max_abs"] == 0.0
+    # the run's own tolerance is always replayed: the changes need it
+    assert set(st.table([tmp_path / "steady.nc"], [0.05], every=EVERY)["tolerance"]) == {0.03, 0.05}
 
 
 def test_bad_tolerance_is_refused(st, capsys):
