@@ -269,7 +269,8 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
             color = line.get_color()
             ax.plot(t[resolved], err[resolved], "o", color=color, ms=5)
             ax.plot(t[~resolved], err[~resolved], "o", mfc="white", color=color, ms=5)
-            ax.plot(t, part[f"{q}_noise"].to_numpy(dtype=float), ":", color=color, lw=0.8)
+            if not noise_only:  # the seeds' own noise would join them into a line
+                ax.plot(t, part[f"{q}_noise"].to_numpy(dtype=float), ":", color=color, lw=0.8)
             for ti, ei, v in zip(t, err, part["value"]):
                 ax.annotate(f"{v:g}", (ti, ei), textcoords="offset points", xytext=(3, 3), fontsize=6,
                             color=color)
