@@ -135,7 +135,7 @@ def lammps_parameters(sim: Simulation) -> dict:
     """The contact law in LAMMPS gran/hooke units (damping per unit reduced mass, 1/s)."""
     m = sim.model
     m_pair = m.mass / 2
-    return {"kn": m.stiffness, "gamma_n": m.damping_pair / m_pair, "gamma_t": m.tangential_damping / m_pair,
+    return {"kn": m.stiffness, "gamma_n": m.damping_pair / m_pair, "gamma_t": m.tangential_damping_pair / m_pair,
             "xmu": m.friction_pair, "dt": sim.dt, "radius_tube": sim.case["tube.diameter"] / 2,
             "gravity": sim.case["physics.gravity"], "n_grains": sim.n_particles}
 

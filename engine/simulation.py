@@ -66,8 +66,8 @@ class Simulation:
         p = P.new_params()
         p[P.DT] = self.dt
         p[P.MASS], p[P.RADIUS], p[P.INERTIA] = m.mass, m.radius, m.inertia
-        p[P.KN], p[P.GN_PAIR], p[P.GN_WALL], p[P.GT] = (m.stiffness, m.damping_pair, m.damping_wall,
-                                                        m.tangential_damping)
+        p[P.KN], p[P.GN_PAIR], p[P.GN_WALL] = m.stiffness, m.damping_pair, m.damping_wall
+        p[P.GT], p[P.GT_WALL] = m.tangential_damping_pair, m.tangential_damping_wall
         p[P.MU_PAIR], p[P.MU_WALL] = m.friction_pair, m.friction_wall
         p[P.TUBE_RADIUS], p[P.TUBE_LENGTH] = c["tube.diameter"] / 2, c["tube.length"]
         p[P.GX], p[P.GY], p[P.GZ] = self.gravity

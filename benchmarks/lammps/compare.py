@@ -92,9 +92,9 @@ def lammps_variables(model, case, dt: float) -> dict:
     theta = math.radians(case["tube.inclination_deg"])
     # ours (x along the tube, gravity -x sin(theta) - z cos(theta)) -> LAMMPS (y, z, x)
     return {"kn": model.stiffness, "kt": model.stiffness * 2.0 / 7.0,   # kt: unused by gran/hooke
-            "gn": model.damping_pair / (m / 2), "gt": model.tangential_damping / (m / 2),
+            "gn": model.damping_pair / (m / 2), "gt": model.tangential_damping_pair / (m / 2),
             "mu": model.friction_pair,
-            "gnw": model.damping_wall / m, "gtw": model.tangential_damping / m, "muw": model.friction_wall,
+            "gnw": model.damping_wall / m, "gtw": model.tangential_damping_wall / m, "muw": model.friction_wall,
             "dt": dt, "R": case["tube.diameter"] / 2, "g": case["physics.gravity"],
             "gx": 0.0, "gy": -math.cos(theta), "gz": -math.sin(theta),
             "skin": case["numerics.neighbor_skin"] * case["particles.diameter"]}

@@ -2,7 +2,8 @@
 
 Normal: F_n = max(0, k_n delta + gamma_n v_n) along the line of centres (never attractive).
 Tangential: F_t = -min(mu F_n, gamma_t |v_t|) v_t/|v_t| at the contact point (no history), with
-v_t the tangential slip velocity of the contact point including rotation.
+v_t the tangential slip velocity of the contact point including rotation; gamma_t arrives capped at
+m_slip/dt so that the explicit dashpot cannot reverse a slip (engine/contact.py).
 """
 
 import math
@@ -151,6 +152,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
     kn = p[P.KN]
     gn = p[P.GN_PAIR]
     gt = p[P.GT]
+    gt_wall = p[P.GT_WALL]
     mu = p[P.MU_PAIR]
     gn_wall = p[P.GN_WALL]
     mu_wall = p[P.MU_WALL]
@@ -239,7 +241,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
                 max_overlap = max(max_overlap, delta)
                 fn, fx, fy, fz, tx, ty, tz = _wall_contact(
                     delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
-                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt)
+                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
                 wall_normal[i] = fn
                 fxi += fx
                 fyi += fy
@@ -252,7 +254,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
                 max_overlap = max(max_overlap, delta)
                 fn, fx, fy, fz, tx, ty, tz = _wall_contact(
                     delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
-                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt)
+                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
                 fxi += fx
                 fyi += fy
                 fzi += fz

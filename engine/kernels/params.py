@@ -9,7 +9,7 @@ INERTIA = 3          # moment of inertia 2/5 m r^2, kg m2
 KN = 4               # normal stiffness, N/m
 GN_PAIR = 5          # normal damping grain-grain, N s/m
 GN_WALL = 6          # normal damping grain-wall, N s/m
-GT = 7               # tangential damping gamma_t, N s/m
+GT = 7               # tangential damping grain-grain, gamma_t capped at (m/7)/dt, N s/m
 MU_PAIR = 8          # Coulomb coefficient grain-grain
 MU_WALL = 9          # Coulomb coefficient grain-wall
 TUBE_RADIUS = 10     # m
@@ -28,7 +28,8 @@ GAS_ON = 22          # 1.0: couple the gas every GAS_INTERVAL steps
 GAS_INTERVAL = 23    # grain steps per gas update
 GAS_THETA = 24       # theta of the gas time scheme
 FEED_VOLUME_RATE = 25  # m_dot / rho_s, m3/s: gas displaced by the entering grains
-NPARAMS = 26
+GT_WALL = 26         # tangential damping grain-wall, gamma_t capped at (2m/7)/dt, N s/m
+NPARAMS = 27
 
 # Integer cell-grid shape vector
 NCX = 0

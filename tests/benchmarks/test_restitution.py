@@ -30,9 +30,9 @@ def test_phase_averaged_restitution_at_the_default_time_step(wall):
 
 
 def test_a_refused_time_step_is_kept_with_its_reason(tmp_path):
-    # 0.2 t_c is above the stable step (0.174 t_c at e = 0.3, 0.194 t_c for the wall at the default
+    # 0.3 t_c is above the stable step (0.174 t_c at e = 0.3, 0.287 t_c for the wall at the default
     # pair e, which sets t_c): a row without numbers and with the reason, not a gap.
-    main(["--out-dir", str(tmp_path), "--fractions", "0.2", "--restitutions", "0.3", "--phases", "2"])
+    main(["--out-dir", str(tmp_path), "--fractions", "0.3", "--restitutions", "0.3", "--phases", "2"])
     rows = pd.read_csv(tmp_path / "restitution.csv", keep_default_na=False)
     assert len(rows) == 2 and all("use numerics.time_step_fraction <=" in r for r in rows["refused"])
     assert "refused" in (tmp_path / "restitution.md").read_text() and (tmp_path / "restitution.png").exists()

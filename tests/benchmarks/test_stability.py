@@ -43,7 +43,7 @@ def test_time_step_above_the_limit_is_refused_naming_key_and_limit(stability):
         "time step, horizontal", "0.5", "horizontal", {"numerics.time_step_fraction": 0.5}))
     assert row["outcome"] == "refused" and row["steps"] == 0
     assert "numerics.time_step_fraction = 0.5" in row["reason"]
-    assert "stable limit" in row["reason"] and "numerics.time_step_fraction <= 0.194" in row["reason"]  # 0.6 x the pair limit 0.323
+    assert "stable limit" in row["reason"] and "numerics.time_step_fraction <= 0.287" in row["reason"]  # 0.6 x the damped pair limit 0.478 at e = 0.5
     assert "\n" not in row["reason"]
 
 

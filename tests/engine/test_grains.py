@@ -277,12 +277,39 @@ def test_packed_column_margin_on_the_time_step():
     Simulation(grain_case(*undamped, "numerics.time_step_fraction=0.5", "numerics.time_step_safety=1"))
 
 
-def test_tangential_limit_applies_only_with_friction():
-    # The tangential dashpot limit 2(m/7)/gamma_t (0.32 t_c by default) binds at mu = 0.5; without
-    # friction the normal limit (0.50 t_c at e = 0.5) is the only one: 0.25 t_c passes the 0.6 margin.
-    with pytest.raises(CaseError, match="numerics.time_step_fraction <= 0.19"):
-        Simulation(grain_case("numerics.time_step_fraction=0.25"))
-    Simulation(grain_case("numerics.time_step_fraction=0.25", "particles.friction=0", "wall.friction=0"))
+def test_tangential_dashpot_is_capped_so_the_time_step_limit_is_the_normal_one():
+    # Slip inertia m/7 (pair) and 2m/7 (wall): the cap (m/7)/dt passes gamma_t = 0.02 N s/m below
+    # dt = 9.6 us, e.g. 0.15 t_c at k_n = 2000 N/m (8.9 us), where the papers' law is untouched.
+    m = Simulation(grain_case("particles.stiffness=2000")).model
+    assert m.tangential_damping_pair == m.tangential_damping_wall == m.tangential_damping == 0.02
+    # At 0.25 t_c (14.9 us) the pair value is capped at (m/7)/dt, the wall one not yet.
+    m = Simulation(grain_case("particles.stiffness=2000", "numerics.time_step_fraction=0.25")).model
+    assert m.tangential_damping_pair == pytest.approx(m.mass / 7 / m.time_step, rel=1e-12)
+    assert m.tangential_damping_pair < 0.02
+    assert m.tangential_damping_wall == 0.02
+    # The only limit left is the normal one, 0.6 x 0.478 t_c at e = 0.5, with friction or without.
+    for friction in ("0.5", "0"):
+        with pytest.raises(CaseError, match="numerics.time_step_fraction <= 0.287"):
+            Simulation(grain_case("numerics.time_step_fraction=0.3", f"particles.friction={friction}",
+                                  f"wall.friction={friction}"))
+
+
+def test_sticking_contact_stops_its_slip_at_a_step_beyond_the_explicit_dashpot_limit():
+    # gamma_t = 0.1 N s/m on the floor: gamma_t dt / (2m/7) = 2.3 at the default step, beyond the
+    # explicit dashpot's limit 2 (uncapped, this grain's slip grows until the Coulomb bound mu m g
+    # holds it and then chatters: measured slip 1.04 u0 after 2 ms, and -2.3 u0 at gamma_t = 0.2).
+    # Capped (gamma_t dt / m_slip = 1) the slip decays, by about half per step, and the grain rolls;
+    # angular momentum about the contact point fixes v = -(2/7) u0 for a grain that starts at rest
+    # spinning with slip u0 (I = 2/5 m r^2).
+    sim = Simulation(grain_case("particles.tangential_damping=0.1", "wall.friction=10", "particles.stiffness=2000"))
+    assert sim.model.tangential_damping_wall * sim.dt / (2 * sim.model.mass / 7) == pytest.approx(1.0)
+    u0, r = 1e-4, D_GRAIN / 2
+    sag = sim.model.mass * 9.81 / sim.model.stiffness
+    sim.add_particles([[0.05, 0, -(R_TUBE - r) - sag]], [[0, 0, 0]], [[0, -u0 / r, 0]])
+    sim.advance(0.002)
+    v, omega_y = sim.velocities[0, 0], sim.angular_velocities[0, 1]
+    assert abs(v - omega_y * r) < 1e-3 * u0  # no slip left
+    assert v == pytest.approx(-2 / 7 * u0, rel=1e-3)
 
 
 def test_max_overlap_sees_a_collision_between_frames():
