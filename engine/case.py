@@ -102,7 +102,7 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Normal restitution coefficient e of a head-on grain-grain collision (the normal damping "
         "is calibrated so that the measured e equals this value; the non-attractive spring-dashpot "
         "cannot go below 0.15).", low=0.15, high=1.0),
-    Key("particles.stiffness", 2000.0, "N m-1", "Normal spring constant k_n (grain-grain and grain-wall).",
+    Key("particles.stiffness", 1000.0, "N m-1", "Normal spring constant k_n (grain-grain and grain-wall).",
         low=0.0, low_open=True, high=1e9),
     Key("particles.tangential_damping", 0.02, "N s m-1",
         "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
