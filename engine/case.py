@@ -106,7 +106,9 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         low=0.0, low_open=True, high=1e9),
     Key("particles.tangential_damping", 0.02, "N s m-1",
         "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
-        "slowly slipping contacts creep.", low=0.0, high=1e3),
+        "slowly slipping contacts creep. Used as min(gamma_t, m/(7 dt)) between grains and "
+        "min(gamma_t, 2m/(7 dt)) at the wall, so that the explicit dashpot cannot reverse a slip "
+        "(0.0152 N s/m between grains at the default step).", low=0.0, high=1e3),
     Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
         low=0.0, high=10.0),
     Key("wall.restitution", 0.5, "1", "Normal restitution coefficient of a head-on grain-wall impact.",
