@@ -102,13 +102,13 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Normal restitution coefficient e of a head-on grain-grain collision (the normal damping "
         "is calibrated so that the measured e equals this value; the non-attractive spring-dashpot "
         "cannot go below 0.15).", low=0.15, high=1.0),
-    Key("particles.stiffness", 1000.0, "N m-1", "Normal spring constant k_n (grain-grain and grain-wall).",
+    Key("particles.stiffness", 2000.0, "N m-1", "Normal spring constant k_n (grain-grain and grain-wall).",
         low=0.0, low_open=True, high=1e9),
     Key("particles.tangential_damping", 0.02, "N s m-1",
         "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
         "slowly slipping contacts creep. Used as min(gamma_t, m/(7 dt)) between grains and "
         "min(gamma_t, 2m/(7 dt)) at the wall, so that the explicit dashpot cannot reverse a slip "
-        "(0.0152 N s/m between grains at the default step).", low=0.0, high=1e3),
+        "(above gamma_t at the default step, 8.94 us).", low=0.0, high=1e3),
     Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
         low=0.0, high=10.0),
     Key("wall.restitution", 0.5, "1", "Normal restitution coefficient of a head-on grain-wall impact.",
