@@ -145,8 +145,8 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         low=0.0, low_open=True, high=10.0),
     Key("numerics.time_step_safety", 0.6, "1",
         "Fraction of the single-pair stability limit a time step may reach: packed columns have "
-        "faster modes than one pair (the stress sweep, docs/performance.md, saw heating and "
-        "overlaps past 0.2 d from 0.74 of the pair limit); 1 accepts the pair limit itself.",
+        "faster modes than one pair (the stress sweep, docs/performance.md, stops packed columns "
+        "with overlaps past 0.2 d from 0.73 of the pair limit, 0.35 t_c); 1 accepts the pair limit itself.",
         low=0.0, low_open=True, high=1.0),
     Key("numerics.neighbor_skin", 0.3, "1",
         "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "
