@@ -56,10 +56,10 @@ def test_inlet_wall_reflects_grains():
     assert sim.velocities[0, 0] / 0.05 == pytest.approx(0.5, abs=0.015)
 
 
-def resting_on_floor(sim, velocity=(0.0, 0.0, 0.0)):
+def resting_on_floor(sim, velocity=(0.0, 0.0, 0.0), spin=(0.0, 0.0, 0.0)):
     """Place one grain at its static equilibrium on the bottom of a horizontal tube."""
     sag = sim.model.mass * 9.81 / sim.model.stiffness
-    sim.add_particles([[0.05, 0, -(R_TUBE - D_GRAIN / 2) - sag]], [velocity])
+    sim.add_particles([[0.05, 0, -(R_TUBE - D_GRAIN / 2) - sag]], [velocity], [spin])
 
 
 def test_sliding_sphere_decelerates_at_mu_g_and_ends_rolling_at_five_sevenths():
@@ -304,8 +304,7 @@ def test_sticking_contact_stops_its_slip_at_a_step_beyond_the_explicit_dashpot_l
     sim = Simulation(grain_case("particles.tangential_damping=0.1", "wall.friction=10", "particles.stiffness=2000"))
     assert sim.model.tangential_damping_wall * sim.dt / (2 * sim.model.mass / 7) == pytest.approx(1.0)
     u0, r = 1e-4, D_GRAIN / 2
-    sag = sim.model.mass * 9.81 / sim.model.stiffness
-    sim.add_particles([[0.05, 0, -(R_TUBE - r) - sag]], [[0, 0, 0]], [[0, -u0 / r, 0]])
+    resting_on_floor(sim, spin=(0, -u0 / r, 0))
     sim.advance(0.002)
     v, omega_y = sim.velocities[0, 0], sim.angular_velocities[0, 1]
     assert abs(v - omega_y * r) < 1e-3 * u0  # no slip left
