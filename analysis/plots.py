@@ -242,17 +242,32 @@ OBSERVABLE_LABELS = {"pressure_drop": "pressure drop", "slug_velocity": "slug ve
 def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
     """Relative error of pressure drop, slug velocity and slug length against the CPU time of
     each case (one core: its wall time on an otherwise idle machine), from
-    analysis.precision.relative_errors tables, one per knob. Filled markers: error resolved (> 2
-    combined standard errors); open markers: within that noise, whose one-standard-error level is
-    the dotted line. Dashed grey: twice the run-to-run scatter (of the seed study when there is
-    one, analysis.precision.run_to_run_scatter); the seed study's points are not joined. A star
-    marks each knob's default (`defaults`: parameter -> value); squares at the bottom mark the
-    references (error 0)."""
+    analysis.precision.relative_errors tables, one per knob; one row of panels per flow regime
+    (the tables' `regime` column, analysis.precision.by_regime). Filled markers: error resolved
+    (> 2 combined standard errors); open markers: within that noise, whose one-standard-error level
+    is the dotted line. Dashed grey: twice the run-to-run scatter of the row's regime (of its seed
+    study when there is one, analysis.precision.run_to_run_scatter); the seed study's points are
+    not joined. A star marks each knob's default (`defaults`: parameter -> value); squares at the
+    bottom mark the references (error 0)."""
+    from .precision import by_regime
+
+    regimes = by_regime(tables)
+    fig = Figure(figsize=(11.0, 3.8 * len(regimes)), layout="constrained")
+    axes = np.atleast_2d(fig.subplots(len(regimes), len(OBSERVABLE_LABELS), sharex=True))
+    for row, (regime, group) in zip(axes, regimes.items()):
+        _work_precision_row(row, group, defaults or {})
+        label = "relative error against the reference"
+        row[0].set_ylabel(f"{regime}\n{label}" if regime else label)
+        row[0].legend(frameon=False, fontsize=7, loc="upper right")
+    for ax in axes[-1]:
+        ax.set_xlabel("CPU time of the case (s, one core)")
+    return fig
+
+
+def _work_precision_row(axes, tables: list[pd.DataFrame], defaults: dict) -> None:
+    """One regime's panels of `work_precision`, one per observable."""
     from .precision import SEED, run_to_run_scatter
 
-    fig = Figure(figsize=(11.0, 3.8), layout="constrained")
-    axes = fig.subplots(1, len(OBSERVABLE_LABELS), sharex=True)
-    defaults = defaults or {}
     scatter = run_to_run_scatter(tables)
     floor = 3e-3  # the references (error 0) are drawn here on the log axis
     for ax, (q, name) in zip(axes, OBSERVABLE_LABELS.items()):
@@ -286,7 +301,3 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
         ax.set_yscale("log")
         ax.set_ylim(bottom=floor / 1.5)
         ax.set_title(name, fontsize=10)
-        ax.set_xlabel("CPU time of the case (s, one core)")
-    axes[0].set_ylabel("relative error against the reference")
-    axes[0].legend(frameon=False, fontsize=7, loc="upper right")
-    return fig

@@ -74,6 +74,17 @@ def pool_default(summaries: pd.DataFrame, parameter: str, default, seeds: pd.Dat
     return out
 
 
+def by_regime(tables: list[pd.DataFrame]) -> dict[str, list[pd.DataFrame]]:
+    """The knob tables grouped by flow regime (their `regime` column; "" without one), in the
+    order they first appear. Each regime has its own tube and flow, so its own seed study and
+    run-to-run scatter: errors are judged only against the scatter of their own regime."""
+    out: dict[str, list[pd.DataFrame]] = {}
+    for table in tables:
+        regime = str(table["regime"].iloc[0]) if "regime" in table and len(table) else ""
+        out.setdefault(regime, []).append(table)
+    return out
+
+
 def run_to_run_scatter(tables: list[pd.DataFrame]) -> dict[str, float]:
     """Relative standard deviation (std/mean, ddof=1) of each observable over independent runs: the
     cases of the seed study (parameter run.seed, every knob at its default) when there is one, else

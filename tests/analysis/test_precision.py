@@ -95,3 +95,31 @@ def test_default_point_is_the_mean_of_the_seed_runs():
     # one chance-high default run is no longer a 10 % error against the reference
     table = relative_errors(pooled, "numerics.time_step_fraction", 0.1)
     assert table.loc[table["value"] == 0.2, "pressure_drop_error"].iloc[0] == pytest.approx(0.025)
+
+
+def seed_runs(pressure_drops):
+    n = len(pressure_drops)
+    return pd.DataFrame({"run.seed": list(range(n)), "pressure_drop": pressure_drops,
+                         "pressure_drop_sem": [10.0] * n, "slug_velocity": [0.30] * n,
+                         "slug_velocity_sem": [0.003] * n, "slug_length": [0.05] * n,
+                         "slug_length_sem": [0.001] * n, "cpu_time_s": [20.0] * n})
+
+
+def test_each_regime_is_drawn_against_its_own_seed_scatter():
+    from analysis.precision import by_regime, run_to_run_scatter
+
+    tables = []
+    for regime, seeds in (("slug", [1000.0, 1010.0, 990.0]), ("bulk", [1000.0, 1200.0, 800.0])):
+        for table in (relative_errors(summaries(), "numerics.time_step_fraction", 0.1),
+                      relative_errors(seed_runs(seeds), "run.seed", 0)):
+            table.insert(0, "regime", regime)
+            tables.append(table)
+    groups = by_regime(tables)
+    assert list(groups) == ["slug", "bulk"] and all(len(g) == 2 for g in groups.values())
+    fig = work_precision(tables, {"numerics.time_step_fraction": 0.2})
+    assert len(fig.axes) == 6  # a row of three panels per regime
+    for row, regime in enumerate(groups):
+        expected = 2 * run_to_run_scatter(groups[regime])["pressure_drop"]
+        dashed = [line.get_ydata()[0] for line in fig.axes[3 * row].get_lines() if line.get_linestyle() == "--"]
+        assert dashed == [pytest.approx(expected)], regime
+        assert fig.axes[3 * row].get_ylabel().startswith(regime)

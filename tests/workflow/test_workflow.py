@@ -223,6 +223,64 @@ def test_bad_point_reference_is_refused(tmp_path):
     assert "h_vs" in run.stderr + run.stdout
 
 
+def test_two_seed_studies_in_one_regime_are_refused(tmp_path):
+    work = scratch(tmp_path)
+    (work / "config/bad.yaml").write_text(yaml.safe_dump({
+        "sweeps": {"wp_seed_more": {"base": "config/cases/horizontal.yaml", "position": 0.1,
+                                    "parameters": {"run.seed": [7, 8]}}},
+        "benchmarks": {"work_precision": {"wp_seed_more": {"reference": 7, "regime": "slug"}}}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
+    assert run.returncode != 0
+    err = run.stderr + run.stdout
+    assert "wp_seed_more" in err and "wp_seed" in err and "regime" in err
+
+
+def test_work_precision_pools_each_regime_with_its_own_seeds(tmp_path):
+    """workflow/scripts/work_precision.py standalone: the default point of a bulk knob is the mean
+    of the bulk seeds, not of the slug seeds, and each regime keeps its own scatter."""
+    import pandas as pd
+
+    def summary(name, **values):
+        row = {"pressure_drop_sem": 10.0, "slug_velocity": 0.3, "slug_velocity_sem": 0.003,
+               "slug_length": 0.05, "slug_length_sem": 0.001, "wall_time_s": 10.0, "cpu_time_s": 10.0,
+               **values}
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps(row))
+        return str(path)
+
+    dt = "numerics.time_step_fraction"
+    studies = {
+        "wp_time_step": {"parameter": dt, "reference": 0.05, "default": 0.15, "regime": "slug",
+                         "summaries": [summary("s1", **{dt: 0.05, "pressure_drop": 1000.0}),
+                                       summary("s2", **{dt: 0.15, "pressure_drop": 5000.0})]},
+        "wp_seed": {"parameter": "run.seed", "reference": 0, "default": 0, "regime": "slug",
+                    "summaries": [summary(f"s3{k}", **{"run.seed": k, "pressure_drop": p})
+                                  for k, p in enumerate([1000.0, 1020.0, 980.0])]},
+        "wp_bulk_time_step": {"parameter": dt, "reference": 0.05, "default": 0.15, "regime": "bulk",
+                              "summaries": [summary("b1", **{dt: 0.05, "pressure_drop": 2000.0}),
+                                            summary("b2", **{dt: 0.15, "pressure_drop": 9000.0})]},
+        "wp_bulk_seed": {"parameter": "run.seed", "reference": 0, "default": 0, "regime": "bulk",
+                         "summaries": [summary(f"b3{k}", **{"run.seed": k, "pressure_drop": p})
+                                       for k, p in enumerate([1500.0, 1700.0, 1600.0])]},
+    }
+    table_path = tmp_path / "wp.csv"
+    run = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/work_precision.py"),
+                          "--output", f"table={table_path}", "--output", f"png={tmp_path / 'wp.png'}",
+                          "--params", f"studies={json.dumps(studies)}"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    table = pd.read_csv(table_path, comment="#")
+    default = table.loc[(table["sweep"] == "wp_bulk_time_step") & (table["value"] == 0.15)].iloc[0]
+    assert default["regime"] == "bulk"
+    assert default["pressure_drop"] == pytest.approx(1600.0)  # the bulk seeds' mean (a slug mix: 1300)
+    assert default["pressure_drop_error"] == pytest.approx(0.2)
+    slug = table.loc[(table["sweep"] == "wp_time_step") & (table["value"] == 0.15)].iloc[0]
+    assert slug["pressure_drop"] == pytest.approx(1000.0)
+    attrs = json.loads(table_path.read_text().splitlines()[0].removeprefix("# attrs: "))
+    assert attrs["run_to_run_scatter"]["bulk"]["pressure_drop"] == pytest.approx(100.0 / 1600.0)
+    assert attrs["run_to_run_scatter"]["slug"]["pressure_drop"] == pytest.approx(20.0 / 1000.0)
+
+
 def test_lint_has_no_findings_but_missing_environments():
     """--lint flags only that rules have no conda env/container (a pip-installed project)."""
     run = snakemake("--lint")

@@ -25,7 +25,8 @@ rule bench:
 
 rule work_precision:
     """Error of the pressure drop, slug velocity and slug length against CPU time for each
-    numerical knob (config benchmarks.work_precision: sweep -> reference value)."""
+    numerical knob (config benchmarks.work_precision: sweep -> reference value), one row of panels
+    per flow regime."""
     input:
         summaries=lambda wc: [summary_json(s, p) for s in WORK_PRECISION for p in POINTS[s]],
     output:
@@ -37,6 +38,7 @@ rule work_precision:
         studies=lambda wc: {s: {"parameter": sweep_parameter_keys(s, tied=False)[0],
                                 "reference": WORK_PRECISION[s]["reference"],
                                 "default": knob_default(s),
+                                "regime": WORK_PRECISION[s].get("regime", ""),
                                 "summaries": [summary_json(s, p) for p in POINTS[s]]}
                             for s in WORK_PRECISION},
     log:

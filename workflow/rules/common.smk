@@ -419,6 +419,14 @@ for _s, _spec in WORK_PRECISION.items():
         sw.find_point(_s, POINTS[_s], {sweep_parameter_keys(_s, tied=False)[0]: _spec["reference"]})
     except sw.SweepError as err:
         raise ValueError(f"config: benchmarks.work_precision.{_s}.reference: {err}") from None
+_seed_studies = defaultdict(list)  # regime -> its seed studies (the noise floor: at most one)
+for _s, _spec in WORK_PRECISION.items():
+    if sweep_parameter_keys(_s, tied=False)[0] == "run.seed":
+        _seed_studies[_spec.get("regime", "")].append(_s)
+for _regime, _studies in _seed_studies.items():
+    if len(_studies) > 1:
+        raise ValueError(f"config: benchmarks.work_precision: sweeps {', '.join(_studies)} are all seed "
+                         f"studies of regime {_regime!r}; give each regime one (key `regime`)")
 
 
 def knob_default(sweep):
