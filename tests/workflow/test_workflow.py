@@ -62,16 +62,16 @@ def test_ci_dry_run_lists_every_figure():
 
 
 def test_bulk_short_tube_study_plans_its_cases_only(tmp_path):
-    """config/bulk_short_tube.yaml (docs/performance.md): its five tables plan its 14 short-tube
+    """config/bulk_short_tube.yaml (docs/performance.md): its six tables plan its 16 short-tube
     cases from empty and nothing of the paper run."""
     work = scratch(tmp_path)
-    targets = [f"results/curves/bulk_{s}.csv" for s in "RFBAG"]
+    targets = [f"results/curves/bulk_{s}.csv" for s in "RFEBAG"]
     run = snakemake("-n", "--cores", "2", "--configfile", "config/bulk_short_tube.yaml", "--", *targets,
                     cwd=work)
     assert run.returncode == 0, run.stderr + run.stdout
     out = run.stdout + run.stderr
     cases = set(re.findall(r"results/cases/(bulk_[A-Z])/run\.seed~(\d)\.nc", out))
-    assert len(cases) == 14
+    assert len(cases) == 16
     assert "h_default" not in out and "results/figures" not in out
 
 
