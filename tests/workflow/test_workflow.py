@@ -62,8 +62,9 @@ def test_ci_dry_run_lists_every_figure():
 
 
 def test_bulk_short_tube_study_plans_its_cases_only(tmp_path):
-    """config/bulk_short_tube.yaml (docs/performance.md): its six tables plan its 16 short-tube
-    cases from empty and nothing of the paper run."""
+    """config/bulk_short_tube.yaml (docs/performance.md): its six tables plan its 15 short-tube
+    cases from empty and nothing of the paper run; the defaults' seed 0 is the work-precision
+    study's bulk fill (identical cases run once)."""
     work = scratch(tmp_path)
     targets = [f"results/curves/bulk_{s}.csv" for s in "RFEBAG"]
     run = snakemake("-n", "--cores", "2", "--configfile", "config/bulk_short_tube.yaml", "--", *targets,
@@ -71,7 +72,8 @@ def test_bulk_short_tube_study_plans_its_cases_only(tmp_path):
     assert run.returncode == 0, run.stderr + run.stdout
     out = run.stdout + run.stderr
     cases = set(re.findall(r"results/cases/(bulk_[A-Z])/run\.seed~(\d)\.nc", out))
-    assert len(cases) == 16
+    assert len(cases) == 14 and ("bulk_R", "0") not in cases
+    assert "results/cases/wp_bulk_fill/base.nc" in out
     assert "h_default" not in out and "results/figures" not in out
 
 
