@@ -227,10 +227,12 @@ def test_bad_point_reference_is_refused(tmp_path):
 
 def test_two_seed_studies_in_one_regime_are_refused(tmp_path):
     work = scratch(tmp_path)
+    config = yaml.safe_load((work / "config/config.yaml").read_text())
+    regime = config["benchmarks"]["work_precision"]["wp_seed"]["regime"]  # wp_seed's, taken twice
     (work / "config/bad.yaml").write_text(yaml.safe_dump({
         "sweeps": {"wp_seed_more": {"base": "config/cases/horizontal.yaml", "position": 0.1,
                                     "parameters": {"run.seed": [7, 8]}}},
-        "benchmarks": {"work_precision": {"wp_seed_more": {"reference": 7, "regime": "slug"}}}}))
+        "benchmarks": {"work_precision": {"wp_seed_more": {"reference": 7, "regime": regime}}}}))
     run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
     assert run.returncode != 0
     err = run.stderr + run.stdout
