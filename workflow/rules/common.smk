@@ -410,6 +410,7 @@ def validation_statements():
 # ---- work-precision study (benchmarks.smk) ------------------------------------------------------
 
 WORK_PRECISION = dict((config.get("benchmarks") or {}).get("work_precision") or {})
+_seed_studies = defaultdict(list)  # regime -> its seed studies (the noise floor: at most one)
 for _s, _spec in WORK_PRECISION.items():
     if _s not in POINTS:
         raise ValueError(f"config: benchmarks.work_precision names sweep {_s!r}, which is not declared")
@@ -419,8 +420,6 @@ for _s, _spec in WORK_PRECISION.items():
         sw.find_point(_s, POINTS[_s], {sweep_parameter_keys(_s, tied=False)[0]: _spec["reference"]})
     except sw.SweepError as err:
         raise ValueError(f"config: benchmarks.work_precision.{_s}.reference: {err}") from None
-_seed_studies = defaultdict(list)  # regime -> its seed studies (the noise floor: at most one)
-for _s, _spec in WORK_PRECISION.items():
     if sweep_parameter_keys(_s, tied=False)[0] == "run.seed":
         _seed_studies[_spec.get("regime", "")].append(_s)
 for _regime, _studies in _seed_studies.items():
