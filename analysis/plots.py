@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter
 
 from .casefile import geometry, seconds
 
@@ -248,7 +249,9 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
     is the dotted line. Dashed grey: twice the run-to-run scatter of the row's regime (of its seed
     study when there is one, analysis.precision.run_to_run_scatter); the seed study's points are
     not joined. A star marks each knob's default (`defaults`: parameter -> value); squares at the
-    bottom mark the references (error 0)."""
+    bottom mark the references (error 0). A knob whose reference has no value of an observable (no
+    slug detected in a bulk bed, say) is named in that panel instead of drawn. The legend stands
+    right of each row."""
     from .precision import by_regime
 
     regimes = by_regime(tables)
@@ -258,10 +261,14 @@ def work_precision(tables: list[pd.DataFrame], defaults: dict | None = None):
         _work_precision_row(row, group, defaults or {})
         label = "relative error against the reference"
         row[0].set_ylabel(f"{regime}\n{label}" if regime else label)
-        row[0].legend(frameon=False, fontsize=7, loc="upper right")
+        row[-1].legend(frameon=False, fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     for ax in axes[-1]:
         ax.set_xlabel("CPU time of the case (s, one core)")
     return fig
+
+
+# Log-axis labels at 1, 2 and 5 times a power of ten only, as plain numbers (100, 200, 500, 1000).
+_ONE_TWO_FIVE = FuncFormatter(lambda v, _: f"{v:g}" if v > 0 and f"{v:.0e}"[0] in "125" else "")
 
 
 def _work_precision_row(axes, tables: list[pd.DataFrame], defaults: dict) -> None:
@@ -271,9 +278,12 @@ def _work_precision_row(axes, tables: list[pd.DataFrame], defaults: dict) -> Non
     scatter = run_to_run_scatter(tables)
     floor = 3e-3  # the references (error 0) are drawn here on the log axis
     for ax, (q, name) in zip(axes, OBSERVABLE_LABELS.items()):
+        missing = []
         for table in tables:
             knob = table["parameter"].iloc[0]
             ref = table["is_reference"].to_numpy(dtype=bool)
+            if not np.isfinite(table.loc[ref, q].to_numpy(dtype=float)).any():
+                missing.append(KNOBS.get(knob, knob))
             part = table.loc[~ref].sort_values("cpu_time_s")
             t = part["cpu_time_s"].to_numpy(dtype=float)
             err = np.maximum(part[f"{q}_error"].to_numpy(dtype=float), floor)
@@ -297,7 +307,12 @@ def _work_precision_row(axes, tables: list[pd.DataFrame], defaults: dict) -> Non
             ax.axhline(2 * scatter[q], color="0.5", ls="--", lw=0.8)
             ax.annotate("2 x run-to-run scatter", (0.02, 2 * scatter[q]), xycoords=("axes fraction", "data"),
                         xytext=(0, 2), textcoords="offset points", fontsize=6, color="0.4")
+        if missing:
+            ax.text(0.02, 0.02, "no value in the reference run:\n" + "\n".join(missing), transform=ax.transAxes,
+                    fontsize=6, color="0.3", va="bottom")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.xaxis.set_major_formatter(_ONE_TWO_FIVE)
+        ax.xaxis.set_minor_formatter(_ONE_TWO_FIVE)  # all minor labels would overlap on a short decade
         ax.set_ylim(bottom=floor / 1.5)
         ax.set_title(name, fontsize=10)

@@ -72,7 +72,8 @@ def test_run_to_run_scatter_comes_from_the_seed_study_when_there_is_one():
     assert scatter["pressure_drop"] == pytest.approx(np.std(x, ddof=1) / x.mean())
     assert scatter["pressure_drop"] < run_to_run_scatter([knob])["pressure_drop"]
     fig = work_precision([knob, seed_table], {"run.seed": 0})
-    assert "seed only (noise floor)" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    # the legend stands right of the row's last panel, clear of the points
+    assert "seed only (noise floor)" in [t.get_text() for t in fig.axes[2].get_legend().get_texts()]
 
 
 def test_default_point_is_the_mean_of_the_seed_runs():
@@ -123,3 +124,12 @@ def test_each_regime_is_drawn_against_its_own_seed_scatter():
         dashed = [line.get_ydata()[0] for line in fig.axes[3 * row].get_lines() if line.get_linestyle() == "--"]
         assert dashed == [pytest.approx(expected)], regime
         assert fig.axes[3 * row].get_ylabel().startswith(regime)
+
+
+def test_a_reference_without_slugs_is_named_instead_of_drawn():
+    rows = summaries()
+    rows.loc[rows["numerics.time_step_fraction"] == 0.1, "slug_velocity"] = np.nan  # a bed: no slug
+    fig = work_precision([relative_errors(rows, "numerics.time_step_fraction", 0.1)], {})
+    notes = [[t.get_text() for t in ax.texts] for ax in fig.axes]
+    assert any("no value in the reference run" in n and "time step" in n for n in notes[1])
+    assert not any("no value" in n for n in notes[0] + notes[2])
