@@ -20,8 +20,9 @@ def _keys(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     """Validate a case and print what it implies (time step, contact time, feed)."""
-    from .contact import ContactModel
+    from .contact import DASHPOT_RESOLVED_RATIO, ContactModel
     from .feed import Feed
+    from .run import DASHPOT_WARNING
 
     case = Case.from_yaml(args.case, args.set)
     model = ContactModel.from_case(case)
@@ -29,6 +30,8 @@ def _check(args: argparse.Namespace) -> int:
     print(f"case {args.case}: valid")
     print(f"  contact time        {model.contact_time:.4g} s")
     print(f"  time step           {model.time_step:.4g} s (stable limit {model.stable_time_step:.4g} s)")
+    print(f"  tangential dashpot  gamma_t dt/(m/7) = {model.dashpot_step_ratio:.2f}"
+          + ("" if model.dashpot_resolved else f", above {DASHPOT_RESOLVED_RATIO}: {DASHPOT_WARNING}"))
     if feed.enabled:
         print(f"  feed                {len(feed.template)} grains per layer, layers {feed.spacing * 1e3:.3f} mm "
               f"apart, solid fraction {feed.solid_fraction:.3f}")

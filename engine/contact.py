@@ -40,6 +40,14 @@ def damping_ratio(restitution: float) -> float:
     return brentq(lambda z: clamped_restitution(z) - restitution, 0.0, 0.999, xtol=1e-14)
 
 
+# Largest gamma_t dt / (m/7) (tangential dashpot between grains over its slip inertia) at which a
+# packed bed was measured resolved: 0.466 (gamma_t = 0.01 N s/m at 0.15 t_c) gave the bed of 0.05 t_c
+# within 1 % and no spin chatter, while 0.62 and 0.93 (gamma_t = 0.02 at 0.1 and 0.15 t_c) chatter and
+# hold 36-40 % less pressure drop (docs/performance.md, "The tangential dashpot and the time step").
+# One contact alone is stable up to 1 (the cap); a grain's several contacts couple through its spin.
+DASHPOT_RESOLVED_RATIO = 0.47
+
+
 @dataclass(frozen=True)
 class ContactModel:
     """Derived grain and contact constants, SI units."""
@@ -58,6 +66,16 @@ class ContactModel:
     contact_time: float        # duration of a head-on grain-grain contact, s
     stable_time_step: float    # explicit stability limit, s
     time_step: float           # the step used, s
+
+    @property
+    def dashpot_step_ratio(self) -> float:
+        """gamma_t dt / (m/7) between grains: the step over the slip's relaxation time (1 at the cap)."""
+        return self.tangential_damping_pair * self.time_step / (self.mass / 7.0)
+
+    @property
+    def dashpot_resolved(self) -> bool:
+        """Whether packed beds are resolved at this step (dashpot_step_ratio <= DASHPOT_RESOLVED_RATIO)."""
+        return self.dashpot_step_ratio <= DASHPOT_RESOLVED_RATIO
 
     @classmethod
     def from_case(cls, case: Case) -> "ContactModel":

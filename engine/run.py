@@ -14,12 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from .case import Case
+from .contact import DASHPOT_RESOLVED_RATIO
 from .output import Recorder, batch_means_error, global_attributes, write_atomically
 from .simulation import Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
 
 MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
+DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, slug flow does not; "
+                   "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them "
+                   "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 
 class RunError(RuntimeError):
@@ -167,6 +171,9 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
             sim.add_particles(*start)
             log.info("warm start from %s: %d grains", initial_state, len(start[0]))
         recorder.sample(sim)
+    if not sim.model.dashpot_resolved:
+        log.warning("case %s: tangential dashpot gamma_t dt/(m/7) = %.2f above %.2f: %s", out.name,
+                    sim.model.dashpot_step_ratio, DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING)
     log.info("case %s: dt = %.3g s, %d gas nodes, feed %.3g kg/h, until %s", out.name, sim.dt,
              case["gas.nodes_x"] * case["gas.nodes_y"] * case["gas.nodes_z"] if case["gas.enabled"] else 0,
              case["feed.mass_flow_kg_h"], "steady" if case["run.until_steady"] else f"{case['run.duration']} s")
@@ -199,6 +206,8 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
         reason = "max_duration"
     wall = time.monotonic() - started
     extra = {"stop_reason": reason, "time_step": sim.dt,
+             # > DASHPOT_RESOLVED_RATIO: a packed bed in this case is not converged in the step
+             "dashpot_step_ratio": sim.model.dashpot_step_ratio,
              # wall time of this process's part of the run (after a resume: since the resume)
              "wall_time_s": wall, "resumed": int(bool(resumed)),
              # CPU time of the same part: the cost measure of the work-precision study (less

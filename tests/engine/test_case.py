@@ -74,3 +74,9 @@ def test_cli_check_refuses_bad_override_with_exit_2(capsys):
     assert cli(["check", str(ROOT / "config/cases/horizontal.yaml"), "--set", "wall.friction=-1"]) == 2
     assert "wall.friction = -1.0 is out of range" in capsys.readouterr().err
     assert cli(["check", str(ROOT / "config/cases/horizontal.yaml")]) == 0
+    # the default step under-resolves the tangential dashpot of packed beds: check says so
+    assert "gamma_t dt/(m/7) = 0.93, above 0.47: packed beds" in capsys.readouterr().out
+    assert cli(["check", str(ROOT / "config/cases/horizontal.yaml"), "--set",
+                "numerics.time_step_fraction=0.05"]) == 0
+    out = capsys.readouterr().out
+    assert "gamma_t dt/(m/7) = 0.31" in out and "packed beds" not in out

@@ -307,3 +307,22 @@ def test_progress_is_logged_when_there_is_no_terminal(caplog):
     assert len(lines) == 2
     assert lines[0].startswith("t = 0.50 of at most 1.00 s simulated, 1234 grains, pressure drop 25.0 hPa")
     assert lines[1].startswith("t = 0.75 of at most 1.00 s")
+
+
+def test_an_unresolved_tangential_dashpot_is_warned_and_recorded(tmp_path, caplog):
+    """0.15 t_c at gamma_t = 0.02 N s/m: gamma_t dt/(m/7) = 0.93, above the 0.47 at which packed beds
+    were measured converged; gamma_t = 0.01 (0.466) passes without a warning."""
+    tiny = ["gas.enabled=false", "tube.length=0.021", "run.duration=0.01"]
+    mass = 937.0 * math.pi * 0.0014**3 / 6
+    for damping, warned in ((0.02, True), (0.01, False)):
+        caplog.clear()
+        out = tmp_path / f"g{damping}.nc"
+        with caplog.at_level("WARNING", logger="plugsim"):
+            run_case(Case.from_yaml(CASE, [*tiny, f"particles.tangential_damping={damping}"]), out)
+        with xr.open_dataset(out) as ds:
+            ratio, dt = ds.attrs["dashpot_step_ratio"], ds.attrs["time_step"]
+        assert ratio == pytest.approx(damping * dt * 7 / mass, rel=1e-12)
+        messages = [r.getMessage() for r in caplog.records if "tangential dashpot" in r.getMessage()]
+        assert bool(messages) == warned, messages
+        if warned:
+            assert f"{ratio:.2f} above 0.47" in messages[0] and "time_step_fraction" in messages[0]
