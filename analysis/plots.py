@@ -203,10 +203,13 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
                           group: str | None = "feed.mass_flow_kg_h", ax=None):
     """Pressure drop (hPa/m, standard-error bars) against a swept parameter, one curve per group
     value (H3, V4: against v_s for each mass flow; H5-H7, H21, V7, V8). Markers show the regime:
-    square bulk, circle slug/plug, triangle dilute."""
+    square bulk, circle slug/plug, triangle dilute. A cross marks a bulk point whose case did not
+    resolve the tangential dashpot (column `dashpot_resolved` False): a packed bed there carries a
+    time-step error (docs/performance.md, "The tangential dashpot and the time step")."""
     fig, ax = _axes(ax)
     label, factor = PARAMETERS.get(x, (x, 1.0))
     groups = [(None, table)] if group is None or group not in table else list(table.groupby(group))
+    flagged = False
     for value, part in groups:
         part = part.sort_values(x)
         xs = part[x].to_numpy(dtype=float) * factor
@@ -221,12 +224,26 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
                 sel = (part["regime"] == regime).to_numpy()
                 if sel.any():
                     ax.plot(xs[sel], dp[sel], marker, color=line.get_color(), ms=4)
+        if "regime" in part and "dashpot_resolved" in part:
+            unresolved = ((part["regime"] == "bulk") & part["dashpot_resolved"].map(_is_false)).to_numpy()
+            if unresolved.any():
+                ax.plot(xs[unresolved], dp[unresolved], "x", color="k", ms=8, mew=1.2,
+                        label=None if flagged else UNRESOLVED_BULK)
+                flagged = True
     ax.set_xlabel(label)
     ax.set_ylabel("pressure drop (hPa/m)")
     ax.set_ylim(bottom=0)
-    if group is not None and len(groups) > 1:
-        ax.legend(frameon=False)
+    if (group is not None and len(groups) > 1) or flagged:
+        ax.legend(frameon=False, fontsize=8)
     return fig
+
+
+UNRESOLVED_BULK = "bulk, step not converged\n(tangential dashpot)"
+
+
+def _is_false(value) -> bool:
+    """False, "False", 0 (a CSV's reading of False); not None/NaN (unknown)."""
+    return str(value).strip().lower() in ("false", "0", "0.0")
 
 
 KNOBS = {  # work-precision knobs -> legend label with unit

@@ -208,6 +208,7 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
     extra = {"stop_reason": reason, "time_step": sim.dt,
              # > DASHPOT_RESOLVED_RATIO: a packed bed in this case is not converged in the step
              "dashpot_step_ratio": sim.model.dashpot_step_ratio,
+             "dashpot_resolved": int(sim.model.dashpot_resolved),
              # wall time of this process's part of the run (after a resume: since the resume)
              "wall_time_s": wall, "resumed": int(bool(resumed)),
              # CPU time of the same part: the cost measure of the work-precision study (less

@@ -104,6 +104,22 @@ def test_characteristic_curves_in_hpa_per_metre():
     assert isinstance(fig, Figure) and saved(fig)
 
 
+def test_bulk_points_with_an_unresolved_dashpot_are_crossed():
+    table = pd.DataFrame({
+        "gas.superficial_velocity": [0.15, 0.25, 1.0, 2.0], "pressure_drop": [9000.0, 7000.0, 1000.0, 800.0],
+        "pressure_drop_sem": [50.0] * 4, "regime": ["bulk", "bulk", "slug", "slug"],
+        # as read back from a curve CSV; the slug point at 2 m/s is unresolved too but not a packed bed,
+        # the bulk point at 0.25 m/s is resolved
+        "dashpot_resolved": ["False", "True", "False", "False"]})
+    ax = plots.characteristic_curves(table, group=None).axes[0]
+    crosses = [line for line in ax.get_lines() if line.get_marker() == "x"]
+    assert len(crosses) == 1 and np.allclose(crosses[0].get_xydata(), [[0.15, 90.0]])
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [plots.UNRESOLVED_BULK]
+    table["dashpot_resolved"] = [True, True, None, None]  # resolved, or unknown: no cross, no legend
+    ax = plots.characteristic_curves(table, group=None).axes[0]
+    assert not [line for line in ax.get_lines() if line.get_marker() == "x"] and ax.get_legend() is None
+
+
 def test_plots_draw_into_a_given_axes(default_slugs):
     fig = Figure()
     ax = fig.add_subplot()

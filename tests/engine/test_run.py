@@ -321,6 +321,7 @@ def test_an_unresolved_tangential_dashpot_is_warned_and_recorded(tmp_path, caplo
             run_case(Case.from_yaml(CASE, [*tiny, f"particles.tangential_damping={damping}"]), out)
         with xr.open_dataset(out) as ds:
             ratio, dt = ds.attrs["dashpot_step_ratio"], ds.attrs["time_step"]
+            assert ds.attrs["dashpot_resolved"] == (0 if warned else 1)
         assert ratio == pytest.approx(damping * dt * 7 / mass, rel=1e-12)
         messages = [r.getMessage() for r in caplog.records if "tangential dashpot" in r.getMessage()]
         assert bool(messages) == warned, messages

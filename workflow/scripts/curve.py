@@ -14,7 +14,7 @@ from _helpers import read_json, setup_logging, snakemake_or_cli, write_table
 
 RESULTS = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "stop_reason",
            "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
-           "n_particles", "n_particles_sem", "mass_flow_out", "n_slugs"]
+           "n_particles", "n_particles_sem", "mass_flow_out", "n_slugs", "dashpot_resolved"]
 UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s", "t_end": "s",
          "slug_rate": "s-1", "slug_velocity": "m s-1", "slug_length": "m", "mass_flow_out": "kg s-1"}
 
