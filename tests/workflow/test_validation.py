@@ -91,3 +91,27 @@ def test_reduced_run_warning_only_for_physical_overrides():
     assert "reduced run" not in validation.markdown(table, {"all_cases": {"output.snapshot_t_min": 7.0}})
     assert "reduced run" in validation.markdown(table, {"all_cases": {"tube.length": 0.1,
                                                                       "output.snapshots": False}})
+
+
+def test_bulk_points_with_an_unresolved_dashpot_are_noted_not_judged_otherwise(tmp_path):
+    v = np.array([0.15, 0.25, 0.5, 0.75, 1.0])
+    table = pd.DataFrame({"gas.superficial_velocity": v, "pressure_drop": 100.0 * np.array([90, 70, 20, 12, 10.0]),
+                          "pressure_drop_sem": 50.0, "regime": ["bulk", "bulk", "slug", "slug", "slug"],
+                          "dashpot_resolved": [False, True, False, False, False]})
+    path = tmp_path / "vs.csv"
+    write_table(table, path)
+    spec = {"regime": "bulk", "value": 0.3, "tolerance": 0.1, "unit": "m/s"}
+    row = validation.compare(statement(str(path), "transition", key="gas.superficial_velocity", **spec), {})
+    # one bulk point is unresolved (the slug points do not count: no packed bed); the verdict stands
+    assert row["within"] == "yes" and row["ours"] == pytest.approx(0.375)
+    assert "1 bulk point(s) in its data carry a time-step error" in row["note"]
+    write_table(table.assign(dashpot_resolved=True), path)
+    row = validation.compare(statement(str(path), "transition", key="gas.superficial_velocity", **spec), {})
+    assert "time-step error" not in row["note"]
+    summary = tmp_path / "bulk.json"
+    summary.write_text('{"pressure_drop": 9000.0, "pressure_drop_sem": 90.0, "regime": "bulk", '
+                       '"dashpot_resolved": false}')
+    one = {"id": "T", "paper": "H", "source": "test", "statement": "test", "measure": "pressure_drop",
+           "files": {"summaries": [str(summary)]}, "value": 90.0, "tolerance": 10.0, "unit": "hPa/m"}
+    row = validation.compare(one, {})
+    assert row["within"] == "yes" and "1 bulk point(s)" in row["note"]
