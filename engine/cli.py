@@ -30,8 +30,13 @@ def _check(args: argparse.Namespace) -> int:
     print(f"case {args.case}: valid")
     print(f"  contact time        {model.contact_time:.4g} s")
     print(f"  time step           {model.time_step:.4g} s (stable limit {model.stable_time_step:.4g} s)")
-    print(f"  tangential dashpot  gamma_t dt/(m/7) = {model.dashpot_step_ratio:.2f}"
-          + ("" if model.dashpot_resolved else f", above {DASHPOT_RESOLVED_RATIO}: {DASHPOT_WARNING}"))
+    if model.dashpot_step_ratio <= DASHPOT_RESOLVED_RATIO:
+        verdict = ""
+    elif model.implicit_spin:
+        verdict = f", above {DASHPOT_RESOLVED_RATIO}, resolved by the implicit spin kick (numerics.implicit_spin)"
+    else:
+        verdict = f", above {DASHPOT_RESOLVED_RATIO}: {DASHPOT_WARNING}"
+    print(f"  tangential dashpot  gamma_t dt/(m/7) = {model.dashpot_step_ratio:.2f}{verdict}")
     if feed.enabled:
         print(f"  feed                {len(feed.template)} grains per layer, layers {feed.spacing * 1e3:.3f} mm "
               f"apart, solid fraction {feed.solid_fraction:.3f}")

@@ -22,7 +22,8 @@ log = logging.getLogger("plugsim")
 
 MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
 DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, slug flow does not; "
-                   "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them "
+                   "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them, "
+                   "as does numerics.implicit_spin (experimental) "
                    "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 

@@ -81,6 +81,7 @@ class Simulation:
         p[P.CELL_DX] = (c["tube.length"] + 2 * d - p[P.CELL_X0]) / ncx
         p[P.CELL_DYZ] = c["tube.diameter"] / nyz
         # Rotation only matters through tangential forces; frictionless grains never spin up.
+        p[P.IMPLICIT_SPIN] = 1.0 if c["numerics.implicit_spin"] else 0.0
         p[P.ROTATION] = 1.0 if (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0 else 0.0
         p[P.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
         p[P.GAS_INTERVAL] = c["numerics.gas_interval"]
@@ -116,7 +117,7 @@ class Simulation:
         arrays = {}
         for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
                                    ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
-                                   ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
+                                   ("_torque", (cap, 4), float), ("_pos_ref", (cap, 3), float),
                                    ("_wall_normal", cap, float), ("_drag", (cap, 3), float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
                                    ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
@@ -135,7 +136,8 @@ class Simulation:
     def _chunk_arrays(self, cap: int) -> tuple:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
         rows = cap if self.threads > 1 else 1
-        return (np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 3)),
+        # spill torque rows hold the three torques and the viscous gamma_t sum (numerics.implicit_spin)
+        return (np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 4)),
                 np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
                 np.zeros(rows, dtype=np.int64))
 

@@ -18,33 +18,36 @@ FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def _tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
-    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2."""
+    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
+    if the contact is in its viscous (sticking) branch, else 0."""
     vcn = vcx * nx + vcy * ny + vcz * nz
     vtx = vcx - vcn * nx
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
     vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
     if vt <= 0.0:
-        return 0.0, 0.0, 0.0
-    ft = min(mu * fn, gt * vt)
+        return 0.0, 0.0, 0.0, gt
+    fv = gt * vt
+    fc = mu * fn
+    ft = min(fc, fv)
     s = -ft / vt
-    return s * vtx, s * vty, s * vtz
+    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def _wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r, kn, gn, mu, gt):
     """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall).
 
-    Returns (F_n, F_x, F_y, F_z, T_x, T_y, T_z): normal force magnitude (0 when separating), force
-    and torque on the grain. Inlined with constant normals, the zero components fold away.
+    Returns (F_n, F_x, F_y, F_z, T_x, T_y, T_z, g): normal force magnitude (0 when separating), force
+    and torque on the grain, and gt if the tangential force is in its viscous branch (else 0). Inlined with constant normals, the zero components fold away.
     """
     fn = kn * delta + gn * (vx * nx + vy * ny + vz * nz)
     if fn <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    ftx, fty, ftz = _tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    ftx, fty, ftz, g = _tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
+                                   vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
     return (fn, -fn * nx + ftx, -fn * ny + fty, -fn * nz + ftz,
-            r * (ny * ftz - nz * fty), r * (nz * ftx - nx * ftz), r * (nx * fty - ny * ftx))
+            r * (ny * ftz - nz * fty), r * (nz * ftx - nx * ftz), r * (nx * fty - ny * ftx), g)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
@@ -52,7 +55,8 @@ def contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall
     """Zero, then accumulate the grain-grain, cylinder-wall and inlet-wall forces and torques.
 
     diag[0]: max overlap of dynamic grains (pairs and walls), diag[1]: max overlap with a feed
-    grain, m. wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
+    grain, m. torque[i, 3]: the sum of gamma_t over grain i's contacts in the viscous branch, N s/m
+    (the implicit spin kick's denominator, numerics.implicit_spin). wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
     Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
     """
     max_overlap, max_feed, _ = _contacts_range(0, n, pos, vel, omg, kin, nbr_start, nbr, p, force, torque,
@@ -101,8 +105,9 @@ def contact_forces_chunked(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torq
         for j in range(bounds[c + 1], int(chunk_diag[c, 2])):
             for d in range(3):
                 force[j, d] += spill_force[c, j, d]
-                torque[j, d] += spill_torque[c, j, d]
                 spill_force[c, j, d] = 0.0
+            for d in range(4):  # the spin's three torques and the sum of its viscous gamma_t
+                torque[j, d] += spill_torque[c, j, d]
                 spill_torque[c, j, d] = 0.0
     diag[0] = max_overlap
     diag[1] = max_feed
@@ -161,6 +166,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
     max_feed = 0.0
     top = hi
     counting = contact_count.shape[0] > 0
+    implicit = p[P.IMPLICIT_SPIN] > 0.0  # torque[:, 3] is only read (and summed) then
     for i in range(lo, hi):
         touching = 0
         xi = pos[i, 0]
@@ -172,6 +178,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
         txi = 0.0
         tyi = 0.0
         tzi = 0.0
+        gsum = 0.0
         for k in range(nbr_start[i], nbr_start[i + 1]):
             j = nbr[k]
             dx = pos[j, 0] - xi
@@ -200,8 +207,10 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
             wx = omg[i, 0] + omg[j, 0]
             wy = omg[i, 1] + omg[j, 1]
             wz = omg[i, 2] + omg[j, 2]
-            ftx, fty, ftz = _tangential(vrx + r * (wy * nz - wz * ny), vry + r * (wz * nx - wx * nz),
-                                        vrz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+            ftx, fty, ftz, g = _tangential(vrx + r * (wy * nz - wz * ny), vry + r * (wz * nx - wx * nz),
+                                           vrz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+            if implicit:
+                gsum += g
             # force on i; j gets the opposite; both get the same torque r n x F_t
             fx = -fn * nx + ftx
             fy = -fn * ny + fty
@@ -223,6 +232,8 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
                 torque[j, 0] += tx
                 torque[j, 1] += ty
                 torque[j, 2] += tz
+                if implicit:
+                    torque[j, 3] += g
             else:
                 spill_force[j, 0] -= fx
                 spill_force[j, 1] -= fy
@@ -230,6 +241,8 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
                 spill_torque[j, 0] += tx
                 spill_torque[j, 1] += ty
                 spill_torque[j, 2] += tz
+                if implicit:
+                    spill_torque[j, 3] += g
                 top = max(top, j + 1)
         wall_normal[i] = 0.0
         if not kin[i]:
@@ -239,10 +252,11 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
                 touching += 1
                 delta = rho - inner
                 max_overlap = max(max_overlap, delta)
-                fn, fx, fy, fz, tx, ty, tz = _wall_contact(
+                fn, fx, fy, fz, tx, ty, tz, g = _wall_contact(
                     delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
                     omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
                 wall_normal[i] = fn
+                gsum += g
                 fxi += fx
                 fyi += fy
                 fzi += fz
@@ -252,9 +266,10 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
             if xi < r:  # the inlet wall at x = 0
                 delta = r - xi
                 max_overlap = max(max_overlap, delta)
-                fn, fx, fy, fz, tx, ty, tz = _wall_contact(
+                fn, fx, fy, fz, tx, ty, tz, g = _wall_contact(
                     delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
                     omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
+                gsum += g
                 fxi += fx
                 fyi += fy
                 fzi += fz
@@ -267,6 +282,8 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
         torque[i, 0] += txi
         torque[i, 1] += tyi
         torque[i, 2] += tzi
+        if implicit:
+            torque[i, 3] += gsum
         if counting:
             contact_count[i] = touching
     return max_overlap, max_feed, top

@@ -29,7 +29,8 @@ GAS_INTERVAL = 23    # grain steps per gas update
 GAS_THETA = 24       # theta of the gas time scheme
 FEED_VOLUME_RATE = 25  # m_dot / rho_s, m3/s: gas displaced by the entering grains
 GT_WALL = 26         # tangential damping grain-wall, gamma_t capped at (2m/7)/dt, N s/m
-NPARAMS = 27
+IMPLICIT_SPIN = 27   # 1.0: spin kicks scaled by 1/(1 + dt sum(gamma_t) r^2/I) of the viscous contacts
+NPARAMS = 28
 
 # Integer cell-grid shape vector
 NCX = 0

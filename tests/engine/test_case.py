@@ -80,3 +80,5 @@ def test_cli_check_refuses_bad_override_with_exit_2(capsys):
                 "numerics.time_step_fraction=0.05"]) == 0
     out = capsys.readouterr().out
     assert "gamma_t dt/(m/7) = 0.31" in out and "packed beds" not in out
+    assert cli(["check", str(ROOT / "config/cases/horizontal.yaml"), "--set", "numerics.implicit_spin=true"]) == 0
+    assert "0.93, above 0.47, resolved by the implicit spin kick" in capsys.readouterr().out
