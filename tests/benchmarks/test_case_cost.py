@@ -1,6 +1,5 @@
 """benchmarks/case_cost.py: interleaved variants from one warm state (a few seconds)."""
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -9,18 +8,16 @@ import pytest
 from engine import Case
 from engine.run import run_case
 
+from . import load_benchmark
+
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "benchmarks" / "case_cost.py"
 SMALL = ["tube.length=0.04", "gas.nodes_x=12", "run.duration=0.3", "feed.mass_flow_kg_h=9.95",
          "feed.entry_velocity=0.16"]
 
 
 @pytest.fixture(scope="module")
 def case_cost():
-    spec = importlib.util.spec_from_file_location("benchmarks_case_cost", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("case_cost")
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,5 @@
 """benchmarks/spin_chatter.py: the reversed-increment measure and the dashpot's step ratio."""
 
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -11,18 +10,16 @@ import pytest
 from engine import Case
 from engine.run import run_case
 
+from . import load_benchmark
+
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "benchmarks" / "spin_chatter.py"
 SMALL = ["tube.length=0.04", "gas.nodes_x=12", "run.duration=0.1", "feed.mass_flow_kg_h=9.95",
          "feed.entry_velocity=0.16"]
 
 
 @pytest.fixture(scope="module")
 def spin_chatter():
-    spec = importlib.util.spec_from_file_location("benchmarks_spin_chatter", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("spin_chatter")
 
 
 def test_reversed_fraction_tells_a_resolved_oscillation_from_period_two_chatter(spin_chatter):

@@ -1,24 +1,17 @@
 """benchmarks/stability.py: a refused time step names the key and the limit, a normal case runs with
 every check passed, and bad states (fabricated, or slipped into a real run) are caught as SILENT."""
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "stability.py"
+from . import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def stability():
-    spec = importlib.util.spec_from_file_location("benchmarks_stability", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up while it loads
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("stability")
 
 
 def dense_case(stability, duration=0.15, **extra):

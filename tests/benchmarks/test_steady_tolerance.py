@@ -1,13 +1,11 @@
 """benchmarks/steady_tolerance.py: the steady stop replayed on a recorded series (synthetic case)."""
 
-import importlib.util
-from pathlib import Path
-
 import pytest
 
 from tests.analysis import synthetic
 
-ROOT = Path(__file__).resolve().parents[2]
+from . import load_benchmark
+
 EVERY = 10  # frames between stop checks (0.1 s); every frame would cost ~10x more here
 STEADY = {"run.until_steady": True, "run.steady_settle": 1.0, "run.steady_min_window": 2.0,
           "run.steady_rel_error": 0.03, "run.steady_throughput_ratio": 3.0}
@@ -15,11 +13,7 @@ STEADY = {"run.until_steady": True, "run.steady_settle": 1.0, "run.steady_min_wi
 
 @pytest.fixture(scope="module")
 def st():
-    spec = importlib.util.spec_from_file_location("benchmarks_steady_tolerance",
-                                                  ROOT / "benchmarks" / "steady_tolerance.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("steady_tolerance")
 
 
 def recorded(duration=40.0, **run):
