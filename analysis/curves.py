@@ -188,6 +188,16 @@ def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwar
     return out
 
 
+def unresolved_bulk(table: pd.DataFrame) -> pd.Series:
+    """Rows that are bulk points whose case did not resolve the tangential dashpot (column
+    `dashpot_resolved` False, or "False"/0 as a CSV reads it back; unknown counts as not flagged):
+    a packed bed there carries a time-step error (docs/performance.md)."""
+    if "regime" not in table or "dashpot_resolved" not in table:
+        return pd.Series(False, index=table.index)
+    unresolved = table["dashpot_resolved"].map(lambda v: str(v).strip().lower() in ("false", "0", "0.0"))
+    return (table["regime"] == "bulk") & unresolved
+
+
 # ---- shape of a characteristic curve (validation of the papers' trend statements) ---------------
 
 def _weights(err, y):

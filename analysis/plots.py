@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
 from .casefile import geometry, seconds
+from .curves import unresolved_bulk
 
 HPA = 100.0  # Pa per hPa
 PARAMETERS = {  # dotted config key -> (axis label, factor from SI to the label's unit)
@@ -224,12 +225,11 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
                 sel = (part["regime"] == regime).to_numpy()
                 if sel.any():
                     ax.plot(xs[sel], dp[sel], marker, color=line.get_color(), ms=4)
-        if "regime" in part and "dashpot_resolved" in part:
-            unresolved = ((part["regime"] == "bulk") & part["dashpot_resolved"].map(_is_false)).to_numpy()
-            if unresolved.any():
-                ax.plot(xs[unresolved], dp[unresolved], "x", color="k", ms=8, mew=1.2,
-                        label=None if flagged else UNRESOLVED_BULK)
-                flagged = True
+        unresolved = unresolved_bulk(part).to_numpy()
+        if unresolved.any():
+            ax.plot(xs[unresolved], dp[unresolved], "x", color="k", ms=8, mew=1.2,
+                    label=None if flagged else UNRESOLVED_BULK)
+            flagged = True
     ax.set_xlabel(label)
     ax.set_ylabel("pressure drop (hPa/m)")
     ax.set_ylim(bottom=0)
@@ -239,11 +239,6 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
 
 
 UNRESOLVED_BULK = "bulk, step not converged\n(tangential dashpot)"
-
-
-def _is_false(value) -> bool:
-    """False, "False", 0 (a CSV's reading of False); not None/NaN (unknown)."""
-    return str(value).strip().lower() in ("false", "0", "0.0")
 
 
 KNOBS = {  # work-precision knobs -> legend label with unit

@@ -207,7 +207,8 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
         reason = "max_duration"
     wall = time.monotonic() - started
     extra = {"stop_reason": reason, "time_step": sim.dt,
-             # > DASHPOT_RESOLVED_RATIO: a packed bed in this case is not converged in the step
+             # dashpot_resolved 0 (ratio above DASHPOT_RESOLVED_RATIO, explicit spin kick): a packed
+             # bed in this case is not converged in the step
              "dashpot_step_ratio": sim.model.dashpot_step_ratio,
              "dashpot_resolved": int(sim.model.dashpot_resolved),
              # wall time of this process's part of the run (after a resume: since the resume)

@@ -246,10 +246,7 @@ def _unresolved_bulk(st) -> int:
     count = sum(1 for path in files.get("summaries") or []
                 if (s := read_json(path)).get("regime") == "bulk" and s.get("dashpot_resolved") is False)
     if files.get("curve"):
-        rows = _curve_rows(st)
-        if "dashpot_resolved" in rows:
-            unresolved = rows["dashpot_resolved"].map(lambda v: str(v).strip().lower() in ("false", "0"))
-            count += int(((rows["regime"] == "bulk") & unresolved).sum())
+        count += int(curves.unresolved_bulk(_curve_rows(st)).sum())
     return count
 
 
