@@ -20,9 +20,8 @@ def _keys(args: argparse.Namespace) -> int:
 
 def _check(args: argparse.Namespace) -> int:
     """Validate a case and print what it implies (time step, contact time, feed)."""
-    from .contact import DASHPOT_RESOLVED_RATIO, ContactModel
+    from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING, ContactModel
     from .feed import Feed
-    from .run import DASHPOT_WARNING
 
     case = Case.from_yaml(args.case, args.set)
     model = ContactModel.from_case(case)

@@ -46,6 +46,11 @@ def damping_ratio(restitution: float) -> float:
 # hold 36-40 % less pressure drop (docs/performance.md, "The tangential dashpot and the time step").
 # One contact alone is stable up to 1 (the cap); a grain's several contacts couple through its spin.
 DASHPOT_RESOLVED_RATIO = 0.47
+# What a case above it means, for `plugsim check` and the run's warning
+DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, slug flow does not; "
+                   "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them, "
+                   "as does numerics.implicit_spin (experimental) "
+                   "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 
 @dataclass(frozen=True)

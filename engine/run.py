@@ -14,17 +14,13 @@ from pathlib import Path
 import numpy as np
 
 from .case import Case
-from .contact import DASHPOT_RESOLVED_RATIO
+from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
 from .output import Recorder, batch_means_error, global_attributes, write_atomically
 from .simulation import Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
 
 MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
-DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, slug flow does not; "
-                   "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them, "
-                   "as does numerics.implicit_spin (experimental) "
-                   "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 
 class RunError(RuntimeError):

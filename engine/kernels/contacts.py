@@ -39,7 +39,8 @@ def _wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r, kn, gn, mu, gt):
     """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall).
 
     Returns (F_n, F_x, F_y, F_z, T_x, T_y, T_z, g): normal force magnitude (0 when separating), force
-    and torque on the grain, and gt if the tangential force is in its viscous branch (else 0). Inlined with constant normals, the zero components fold away.
+    and torque on the grain, and gt if the tangential force is in its viscous branch (else 0).
+    Inlined with constant normals, the zero components fold away.
     """
     fn = kn * delta + gn * (vx * nx + vy * ny + vz * nz)
     if fn <= 0.0:
@@ -56,7 +57,8 @@ def contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall
 
     diag[0]: max overlap of dynamic grains (pairs and walls), diag[1]: max overlap with a feed
     grain, m. torque[i, 3]: the sum of gamma_t over grain i's contacts in the viscous branch, N s/m
-    (the implicit spin kick's denominator, numerics.implicit_spin). wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
+    (the implicit spin kick's denominator, numerics.implicit_spin; summed only when that is on).
+    wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
     Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
     """
     max_overlap, max_feed, _ = _contacts_range(0, n, pos, vel, omg, kin, nbr_start, nbr, p, force, torque,
@@ -209,8 +211,7 @@ def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque
             wz = omg[i, 2] + omg[j, 2]
             ftx, fty, ftz, g = _tangential(vrx + r * (wy * nz - wz * ny), vry + r * (wz * nx - wx * nz),
                                            vrz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
-            if implicit:
-                gsum += g
+            gsum += g  # in a register: only its stores below are gated on `implicit`
             # force on i; j gets the opposite; both get the same torque r n x F_t
             fx = -fn * nx + ftx
             fy = -fn * ny + fty
