@@ -70,10 +70,9 @@ def chatter(case: Case, initial_state: str, settle: float, steps: int) -> dict:
     sim.add_particles(*read_initial_state(initial_state, case))
     sim.advance(settle)
     spins, vels = record(sim, steps)
-    m = sim.model
     return {"time_step_s": sim.dt, "time_step_fraction": case["numerics.time_step_fraction"],
             "tangential_damping": case["particles.tangential_damping"],
-            "dashpot_step_ratio": m.tangential_damping_pair * sim.dt / (m.mass / 7.0),
+            "dashpot_step_ratio": sim.model.dashpot_step_ratio,
             "grains": int(spins.shape[1]),
             "spin_reversed_fraction": reversed_fraction(spins),
             "spin_rms_rad_s": float(np.sqrt((spins**2).sum(-1).mean())),
