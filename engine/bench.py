@@ -29,8 +29,10 @@ TARGET_GRAINS = 3200
 
 
 def standard_case(*overrides: str) -> Case:
-    """The benchmark case: defaults with gas and feed off."""
-    return Case().with_overrides(["gas.enabled=false", "feed.mass_flow_kg_h=0", *overrides])
+    """The benchmark case: defaults with gas and feed off, the explicit tangential dashpot."""
+    # the papers' explicit tangential law, as LAMMPS gran/hooke integrates it (benchmarks/lammps)
+    return Case().with_overrides(["gas.enabled=false", "feed.mass_flow_kg_h=0", "numerics.implicit_spin=false",
+                                  *overrides])
 
 
 def standard_packing(case: Case) -> np.ndarray:

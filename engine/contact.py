@@ -49,7 +49,7 @@ DASHPOT_RESOLVED_RATIO = 0.47
 # What a case above it means, for `plugsim check` and the run's warning
 DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, slug flow does not; "
                    "a smaller numerics.time_step_fraction or particles.tangential_damping resolves them, "
-                   "as does numerics.implicit_spin (experimental) "
+                   "as does numerics.implicit_spin: true (the default) "
                    "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 

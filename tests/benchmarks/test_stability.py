@@ -68,7 +68,9 @@ def test_real_state_passes_and_fabricated_bad_states_fail(stability, final_state
         state["positions"][5, 1:] = [0.0, R + 0.1 * d]
 
     def overlapping(state):
-        state["positions"][7] = state["positions"][8] + [0.6 * d, 0.0, 0.0]
+        # grain 7 onto a grain far enough from the outlet that 0.6 d further is still in the tube
+        j = int(np.argmin(state["positions"][:, 0]))
+        state["positions"][7 if j != 7 else 8] = state["positions"][j] + [0.6 * d, 0.0, 0.0]
 
     assert stability.failed(broken(v=nan_velocity)) == ["finite"]
     assert "inside" in stability.failed(broken(p=outside))
