@@ -71,7 +71,7 @@ class ContactModel:
     contact_time: float        # duration of a head-on grain-grain contact, s
     stable_time_step: float    # explicit stability limit, s
     time_step: float           # the step used, s
-    implicit_spin: bool = False  # numerics.implicit_spin: spin kicks of sticking contacts taken implicitly
+    implicit_spin: bool        # numerics.implicit_spin: spin kicks of sticking contacts taken implicitly
 
     @property
     def dashpot_step_ratio(self) -> float:
