@@ -106,9 +106,9 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         low=0.0, low_open=True, high=1e9),
     Key("particles.tangential_damping", 0.02, "N s m-1",
         "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
-        "slowly slipping contacts creep. Used as min(gamma_t, m/(7 dt)) between grains (min(gamma_t, "
-        "0.184 m/dt) with numerics.implicit_spin) and min(gamma_t, 2m/(7 dt)) at the wall, so that one "
-        "step cannot reverse a sticking slip (above gamma_t at the default step, 8.94 us). A packed bed is resolved only for "
+        "slowly slipping contacts creep. Used as min(gamma_t, m/(7 dt)) between grains and "
+        "min(gamma_t, 2m/(7 dt)) at the wall, so that the explicit dashpot cannot reverse a slip "
+        "(above gamma_t at the default step, 8.94 us). A packed bed is resolved only for "
         "gamma_t dt/(m/7) <= 0.47 (0.93 at the defaults: the run warns; docs/performance.md).",
         low=0.0, high=1e3),
     Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
