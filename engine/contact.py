@@ -2,7 +2,7 @@
 
 Normal force: F_n = max(0, k_n delta + gamma_n v_n) (linear spring + dashpot, never attractive).
 Tangential force: F_t = -min(mu F_n, gamma_t |v_t|) t_hat (viscous-regularised Coulomb, no history),
-with gamma_t capped so that one step of the dashpot cannot reverse a sticking contact's slip.
+with gamma_t capped at m_slip/dt so that the explicit dashpot cannot reverse a contact's slip.
 """
 
 from __future__ import annotations
@@ -53,14 +53,6 @@ DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, s
                    "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 
-# With the implicit spin kick one step multiplies a sticking pair's slip by 1 - 2a - 5a/(1 + 2.5a),
-# a = gamma_t dt/m (translation of both grains explicit, each spin kick divided by 1 + 2.5a, r^2/I =
-# 2.5/m): it does not reverse while 5a^2 + 4.5a <= 1. The explicit bound is a <= 1/7. The wall keeps
-# its explicit cap 2m/(7 dt), which never reverses under either kick (gamma_t = 0.02 N s/m reaches it at
-# 0.32 t_c, the implicit pair cap at 0.21 t_c, the explicit one at 0.16 t_c: default grains).
-PAIR_CAP_IMPLICIT = (math.sqrt(4.5**2 + 20.0) - 4.5) / 10.0  # 0.1844
-
-
 @dataclass(frozen=True)
 class ContactModel:
     """Derived grain and contact constants, SI units."""
@@ -72,8 +64,7 @@ class ContactModel:
     damping_pair: float        # gamma_n grain-grain, N s/m
     damping_wall: float        # gamma_n grain-wall, N s/m
     tangential_damping: float  # gamma_t as configured, N s/m
-    tangential_damping_pair: float  # gamma_t used grain-grain: min(gamma_t, (m/7)/dt), or with the
-                                    # implicit spin kick min(gamma_t, PAIR_CAP_IMPLICIT m/dt), N s/m
+    tangential_damping_pair: float  # gamma_t used grain-grain: min(gamma_t, (m/7)/dt), N s/m
     tangential_damping_wall: float  # gamma_t used grain-wall: min(gamma_t, (2m/7)/dt), N s/m
     friction_pair: float
     friction_wall: float
@@ -118,7 +109,7 @@ class ContactModel:
         # chatters at the Coulomb bound); capped at m_slip/dt the slip of a sticking contact decays
         # at any dt (tests/engine/test_grains.py). Below the cap (dt < (m/7)/gamma_t = 9.6 us for
         # the default grains) the law is the papers' unchanged.
-        gamma_pair = min(gamma_t, (PAIR_CAP_IMPLICIT if case["numerics.implicit_spin"] else 1.0 / 7.0) * mass / dt)
+        gamma_pair = min(gamma_t, mass / 7.0 / dt)
         gamma_wall = min(gamma_t, 2.0 * mass / 7.0 / dt)
         if dt > stable:
             raise CaseError(

@@ -285,58 +285,16 @@ def test_tangential_dashpot_is_capped_so_the_time_step_limit_is_the_normal_one()
     # dt = 9.6 us, e.g. 0.15 t_c at k_n = 2000 N/m (8.9 us), where the papers' law is untouched.
     m = Simulation(grain_case("particles.stiffness=2000")).model
     assert m.tangential_damping_pair == m.tangential_damping_wall == m.tangential_damping == 0.02
-    # At 0.25 t_c (14.9 us) the pair value is capped, at (m/7)/dt with the explicit spin kick and at
-    # 0.184 m/dt with the implicit one (engine/contact.py); the wall one not yet.
-    for implicit, cap in (("false", 1 / 7), ("true", 0.18443)):
-        m = Simulation(grain_case("particles.stiffness=2000", "numerics.time_step_fraction=0.25",
-                                  f"numerics.implicit_spin={implicit}")).model
-        assert m.tangential_damping_pair == pytest.approx(cap * m.mass / m.time_step, rel=1e-4)
-        assert m.tangential_damping_pair < 0.02
-        assert m.tangential_damping_wall == 0.02
-    # At 0.2 t_c (11.9 us) only the explicit kick's pair value is capped.
-    m = Simulation(grain_case("particles.stiffness=2000", "numerics.time_step_fraction=0.2")).model
-    assert m.tangential_damping_pair == 0.02
+    # At 0.25 t_c (14.9 us) the pair value is capped at (m/7)/dt, the wall one not yet.
+    m = Simulation(grain_case("particles.stiffness=2000", "numerics.time_step_fraction=0.25")).model
+    assert m.tangential_damping_pair == pytest.approx(m.mass / 7 / m.time_step, rel=1e-12)
+    assert m.tangential_damping_pair < 0.02
+    assert m.tangential_damping_wall == 0.02
     # The only limit left is the normal one, 0.6 x 0.478 t_c at e = 0.5, with friction or without.
     for friction in ("0.5", "0"):
         with pytest.raises(CaseError, match="numerics.time_step_fraction <= 0.287"):
             Simulation(grain_case("numerics.time_step_fraction=0.3", f"particles.friction={friction}",
                                   f"wall.friction={friction}"))
-
-
-@pytest.mark.parametrize("implicit", ["false", "true"])
-def test_capped_dashpot_damps_a_colliding_pairs_slip_as_the_cap_is_derived(implicit):
-    # gamma_t = 1 N s/m, far above both pair caps, at 0.25 t_c. The caps (engine/contact.py) rest on
-    # the slip factor of one kick of a sticking pair, a = gamma_t dt/m: 1 - 7a explicit, 1 - 2a -
-    # 5a/(1 + 2.5a) implicit, zero at the cap for a merged kick of dt. One step alone (advance(dt))
-    # kicks twice by dt/2, so the first contact step multiplies the slip by the half-kick factor
-    # 1 - 3.5a (0.5 at the cap) or 1 - a - 2.5a/(1 + 1.25a) (0.441); the normal turning as the
-    # grains slip is a ~1e-5 effect.
-    case = grain_case("physics.gravity=0", "particles.friction=10", "particles.tangential_damping=1",
-                      "numerics.time_step_fraction=0.25", f"numerics.implicit_spin={implicit}")
-    u0, r = 1e-4, D_GRAIN / 2
-
-    def collide(sim):
-        sim.add_particles([[0.1, 0, 0], [0.1 + 1.02 * D_GRAIN, 0, 0]], [[0.05, 0, 0], [-0.05, 0, 0]],
-                          [[0, 0, u0 / r], [0, 0, 0]])
-
-    def slip(sim):
-        v, w = sim.velocities, sim.angular_velocities
-        return v[0, 1] - v[1, 1] + r * (w[0, 2] + w[1, 2])
-
-    sim = Simulation(case)
-    collide(sim)
-    a = sim.model.tangential_damping_pair * sim.dt / sim.model.mass
-    half = 1 - 3.5 * a if implicit == "false" else 1 - a - 2.5 * a / (1 + 1.25 * a)
-    while abs(slip(sim) - u0) < 1e-9 * u0:
-        sim.advance(sim.dt)
-    assert slip(sim) / u0 == pytest.approx(half, abs=1e-3)
-    # In one call the kicks merge: the first full step in contact stops the slip, and what is left
-    # after the collision is the normal's turning (measured -3e-4 u0). With the implicit kick a cap
-    # at the explicit 1/7 leaves +6e-3 u0 and one 35 % above the bound reverses it to -2e-2 u0.
-    sim = Simulation(case)
-    collide(sim)
-    sim.advance(0.03)
-    assert abs(slip(sim)) < 1e-3 * u0
 
 
 def test_sticking_contact_stops_its_slip_at_a_step_beyond_the_explicit_dashpot_limit():
