@@ -108,7 +108,10 @@ class ContactModel:
         # gamma_t dt / m_slip above 1 reverses the slip, above 2 amplifies it (a sticking grain then
         # chatters at the Coulomb bound); capped at m_slip/dt the slip of a sticking contact decays
         # at any dt (tests/engine/test_grains.py). Below the cap (dt < (m/7)/gamma_t = 9.6 us for
-        # the default grains) the law is the papers' unchanged.
+        # the default grains) the law is the papers' unchanged. The implicit spin kick would let a
+        # lone pair go to gamma_t dt/m = 0.184 without reversing, but a packed bed then chatters
+        # from 0.175 t_c (11 % of spin increments reversed, against 1 % at this cap; docs/performance.md,
+        # "Time step 0.2 t_c with the implicit kick"), so both kicks keep it.
         gamma_pair = min(gamma_t, mass / 7.0 / dt)
         gamma_wall = min(gamma_t, 2.0 * mass / 7.0 / dt)
         if dt > stable:
