@@ -121,8 +121,9 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Speed u_in of the feed piston that pushes grains into the tube; the feed is refused when "
         "m_dot cannot be packed at this speed.", low=0.0, low_open=True, high=100.0),
     Key("feed.max_overlap", 0.05, "1",
-        "Largest overlap (fraction of d) the feed piston may press into grains ahead before it "
-        "pauses; bounds the push when the tube is blocked (below the run guard of 0.2 d).",
+        "Largest overlap (fraction of d) the feed piston may press into a grain ahead. The piston "
+        "never pauses (the papers' enforced mass flow); pressing deeper means the tube cannot take "
+        "the feed, and the run ends with stop_reason blocked (below the run guard of 0.2 d).",
         low=0.0, low_open=True, high=0.15),
     Key("gas.enabled", True, "", "Solve the gas pressure field and apply drag (false: pure grains).",
         kind=bool),
@@ -138,6 +139,27 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("gas.theta", 1.0, "1",
         "Implicitness of the gas time scheme (1 = backward Euler, 0.5 = Crank-Nicolson); below 1 the "
         "stiff dilute-cell modes flip sign every step (docs/gas.md).", low=0.5, high=1.0),
+    Key("gas.face_permeability", "harmonic", "",
+        "Permeability on a face between two gas nodes in the discretised eq. (5): the harmonic "
+        "mean of the two nodes' kappa (two half cells in series) or their arithmetic mean; the "
+        "papers do not say.", kind=str, choices=("harmonic", "arithmetic")),
+    Key("gas.scheme", "unsplit", "",
+        "Gas time scheme: the theta scheme on the whole 3-D operator (unsplit) or one theta solve "
+        "per dimension in turn (split: the papers' 'each dimension is integrated separately'; its "
+        "steady state is not that of eq. (5) where the porosity varies across the tube, "
+        "docs/gas.md).", kind=str, choices=("unsplit", "split")),
+    Key("gas.deposit_volume", "tube", "",
+        "Volume that normalises the eq. (8) deposit into a node porosity: the node's share of the "
+        "tube (tube) or the whole cubic grid cell hx hy hz (cell: the cells overhang the round "
+        "tube, so a packing reads a higher porosity).", kind=str, choices=("tube", "cell")),
+    Key("gas.inlet_displaced_volume", True, "",
+        "Add the volume of the entering grains (m_dot / rho_s) to the inlet gas flux v_s A "
+        "(false: the inlet carries the gas flux alone, as the papers' source S ~ v_g P0).",
+        kind=bool),
+    Key("gas.porosity_max", 0.999, "1",
+        "Ceiling of the porosity inside the Carman-Kozeny permeability only (a numerical guard: "
+        "kappa diverges at phi = 1, and the gas solve loses accuracy beyond a contrast of ~1e10 "
+        "to a plug's kappa).", low=0.9, high=0.99999),
     Key("numerics.gas_interval", 10, "1",
         "Grain steps per gas update (the drag is held in between); 1 = every step.", kind=int,
         low=1, high=10000),

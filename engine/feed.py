@@ -3,8 +3,9 @@
 Each layer is a ring packing of the cross-section (19 grains for d = 1.4 mm in D = 7 mm), turned by
 a random angle; layers follow each other at the spacing s that makes the mass flow exact:
 m_dot = N_layer m u_in / s. Feed grains move kinematically and are released into the dynamics once
-fully inside the tube (centre at x >= r). The piston pauses while it presses grains ahead by more
-than feed.max_overlap, so a blocked tube is pushed with a bounded force instead of being crushed.
+fully inside the tube (centre at x >= r). The piston never pauses: the mass flow is enforced, as
+in the papers; its push on the grains is recorded (piston_force), and a tube that cannot take the
+feed (the piston presses a grain by more than feed.max_overlap) ends the run as blocked.
 """
 
 from __future__ import annotations

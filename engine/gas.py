@@ -15,6 +15,13 @@ import numpy as np
 from .kernels import gas as K
 
 QUADRATURE_POINTS = 200_001  # angular midpoint points of the cross-section quadrature
+# kappa(0.999) = 1.1e-2 m2 is 3e6 times a plug's; the block elimination then keeps the steady
+# state to ~5e-7 (1e4 m2 would lose it entirely), and a grain whose node reads 1 - phi = 1e-3 sees
+# a gradient of only eta v_s / kappa = 6e-3 Pa/m at v_s = 1 m/s (docs/gas.md)
+PHI_MAX = 0.999
+FACE_RULES = ("harmonic", "arithmetic")
+DEPOSIT_VOLUMES = ("tube", "cell")
+SCHEMES = ("unsplit", "split")
 
 
 def _tent_antiderivative(z, m, n, lo, h):
@@ -101,15 +108,18 @@ class GasField:
 
     Arguments (SI): length L, diameter D, particle_diameter d, viscosity eta (Pa s), pressure P0
     (Pa), superficial_velocity v_s (m/s), nodes (nx, ny, nz), theta (1 = backward Euler, 0.5 =
-    Crank-Nicolson), phi_min (porosity floor), kappa_max (permeability cap, m2; default D^2/32),
-    outlet ("open": P' = 0 on the outlet face; "flux": prescribed outflow v_s A as in the papers),
-    particle_volume (m3; default pi d^3/6), feed_volume_rate (m3/s, m_dot/rho_s of the feed).
+    Crank-Nicolson), phi_min (porosity floor), phi_max (porosity ceiling inside kappa, a
+    numerical guard), outlet ("open": P' = 0 on the outlet face; "flux": prescribed outflow v_s A as
+    in the papers), particle_volume (m3; default pi d^3/6), feed_volume_rate (m3/s, m_dot/rho_s of
+    the feed), face ("harmonic" or "arithmetic" mean of the nodes' kappa on a face), deposit
+    ("tube": porosity from the node's tube volume; "cell": from the grid cell hx hy hz), scheme
+    ("unsplit" or "split", used by couple; `step` takes `split`).
     """
 
     def __init__(self, length=0.525, diameter=7e-3, particle_diameter=1.4e-3, viscosity=6.73e-5,
                  pressure=101325.0, superficial_velocity=1.0, nodes=(150, 2, 2), theta=1.0,
-                 phi_min=0.2, kappa_max=None, outlet="open", particle_volume=None,
-                 feed_volume_rate=0.0):
+                 phi_min=0.2, phi_max=PHI_MAX, outlet="open", particle_volume=None,
+                 feed_volume_rate=0.0, face="harmonic", deposit="tube", scheme="unsplit"):
         nx, ny, nz = (int(v) for v in nodes)
         _check(nx >= 2 and ny >= 1 and nz >= 1, "nodes", nodes, "nx >= 2, ny >= 1, nz >= 1")
         for name, value in (("length", length), ("diameter", diameter),
@@ -120,10 +130,11 @@ class GasField:
         _check(0.5 <= theta <= 1.0, "theta", theta, "0.5 <= theta <= 1 (unconditionally stable)")
         _check(0.0 < phi_min < 1.0, "phi_min", phi_min, "0 < phi_min < 1")
         _check(outlet in ("open", "flux"), "outlet", outlet, '"open" or "flux"')
+        _check(phi_min < phi_max < 1.0, "phi_max", phi_max, "phi_min < phi_max < 1")
+        _check(face in FACE_RULES, "face", face, " or ".join(FACE_RULES))
+        _check(deposit in DEPOSIT_VOLUMES, "deposit", deposit, " or ".join(DEPOSIT_VOLUMES))
+        _check(scheme in SCHEMES, "scheme", scheme, " or ".join(SCHEMES))
         radius = 0.5 * diameter
-        if kappa_max is None:
-            kappa_max = diameter**2 / 32.0
-        _check(kappa_max > 0.0, "kappa_max", kappa_max, "> 0")
         if particle_volume is None:
             particle_volume = math.pi * particle_diameter**3 / 6.0
         self.nodes = (nx, ny, nz)
@@ -139,7 +150,10 @@ class GasField:
         g[K.G_P0] = pressure
         g[K.G_ETA] = viscosity
         g[K.G_DP] = particle_diameter
-        g[K.G_KAPPA_MAX] = kappa_max
+        g[K.G_PHI_MAX] = phi_max
+        g[K.G_FACE_ARITHMETIC] = 1.0 if face == "arithmetic" else 0.0
+        g[K.G_CELL_VOLUME] = 1.0 if deposit == "cell" else 0.0
+        g[K.G_SPLIT] = 1.0 if scheme == "split" else 0.0
         g[K.G_PHI_MIN] = phi_min
         g[K.G_VS] = superficial_velocity
         g[K.G_AREA] = math.pi * radius**2
@@ -151,14 +165,16 @@ class GasField:
         self.P = np.zeros(shape)
         self.dep = np.zeros(shape + (4,))      # solid volume, solid volume x velocity
         self.phi = np.ones(shape)
-        self.kappa = np.full(shape, kappa_max)
+        self.kappa = np.zeros(shape)
         self.u = np.zeros(shape + (3,))
         self.src = np.zeros(shape)
         self.nodal = np.zeros(shape + (4,))    # phi, grad P'
         blocks = ny * nz
         self.wmat = np.zeros((nx, blocks, blocks))
-        self.wvec = np.zeros((3, nx, blocks))
-        self.work = np.zeros((10, max(shape)))  # only for the split comparison scheme
+        # gas_step uses wvec[0:3]; couple's split scheme reuses it as a (10, max(nodes)) work array
+        rows = max(3, -(-10 * max(shape) // (nx * blocks)))
+        self.wvec = np.zeros((rows, nx, blocks))
+        self.work = np.zeros((10, max(shape)))  # for step(split=True)
         self.update()
 
     # geometry -------------------------------------------------------------------------------
@@ -214,11 +230,14 @@ class GasField:
         self.dep[..., 1:] = solid[..., None] * np.asarray(velocity, dtype=float)
         self.update()
 
-    def step(self, dt, substeps=1, split=False):
+    def step(self, dt, substeps=1, split=None):
         """Advance P' by dt (s) in `substeps` equal theta-steps with the current phi, kappa, u.
 
-        split=True uses the papers' dimension-split scheme (for comparison only).
+        split=True uses the papers' dimension-split scheme, False the unsplit one; None the
+        field's `scheme`.
         """
+        if split is None:
+            split = self.g[K.G_SPLIT] > 0.5
         h = dt / substeps
         args = (self.P, self.phi, self.kappa, self.src, self.area, self.ay, self.az, self.g, h,
                 self.theta)

@@ -22,6 +22,7 @@ SERIES = {  # name: (units, long_name)
     "kinetic_energy": ("J", "translational plus rotational kinetic energy of the grains in the tube"),
     "max_overlap": ("1", "largest grain-grain, grain-wall or grain-feed overlap over the steps of the "
                          "output interval, fraction of the grain diameter"),
+    "piston_force": ("N", "mean axial force of the feed piston on the grains over the output interval"),
 }
 FIELDS = {
     "porosity": ("1", "slice porosity (grains weighted by their volume in the slice)"),
@@ -45,14 +46,19 @@ class Recorder:
         self.times: list[float] = []
         self.snapshots: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._frames_per_snapshot = int(round(case["output.snapshot_interval"] / case["output.interval"]))
+        self._last_impulse = (0.0, 0.0)  # (time, piston impulse) of the previous frame
 
     def sample(self, sim) -> None:
         """Record one frame of `sim` (a Simulation)."""
         self.times.append(sim.time)
         d = 2 * sim.model.radius
+        (t0, j0), j1 = self._last_impulse, sim.piston_impulse
+        piston = (j1 - j0) / (sim.time - t0) if sim.time > t0 else 0.0
+        self._last_impulse = (sim.time, j1)
         values = {"pressure_drop": sim.pressure_drop, "n_particles": sim.n_particles,
                   "mass_in": sim.mass_in, "mass_out": sim.mass_out,
-                  "kinetic_energy": sim.kinetic_energy, "max_overlap": sim.max_overlap / d}
+                  "kinetic_energy": sim.kinetic_energy, "max_overlap": sim.max_overlap / d,
+                  "piston_force": piston}
         for name, value in values.items():
             self.series[name].append(value)
         fields = sim.slice_fields(self.width)

@@ -16,7 +16,7 @@ import numpy as np
 from .case import Case
 from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
 from .output import Recorder, batch_means_error, global_attributes, write_atomically
-from .simulation import Simulation, SimulationError, check_threads
+from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
 
@@ -195,11 +195,15 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
             if case["run.checkpoint_interval"] > 0 and time.monotonic() - last_save > case["run.checkpoint_interval"]:
                 _save_checkpoint(ckpt, sim, recorder, digest)
                 last_save = time.monotonic()
+    except FeedBlocked as err:  # a result, not a failure: the file says so (stop_reason blocked)
+        _check_health(sim)  # unless the state is broken: then the run failed
+        reason = "blocked"
+        log.warning("case %s: %s; the run ends here", out.name, err)
     except SimulationError as err:
         raise RunError(str(err)) from err
     finally:
         progress.close()
-    if case["run.until_steady"] and window is None:
+    if case["run.until_steady"] and window is None and reason != "blocked":
         reason = "max_duration"
     wall = time.monotonic() - started
     extra = {"stop_reason": reason, "time_step": sim.dt,
@@ -217,6 +221,7 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
              "initial_particles": 0 if start is None else len(start[0]),
              # mass in the tube = initial_mass + mass_in - mass_out
              "initial_mass": 0.0 if start is None else len(start[0]) * sim.model.mass,
+             "blocked_time": sim.time if reason == "blocked" else math.nan,
              "steady_start": window[0] if window else math.nan,
              "steady_end": window[1] if window else math.nan}
     write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim)), out)

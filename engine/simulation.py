@@ -29,8 +29,15 @@ def check_threads(threads: int) -> int:
     return int(threads)
 
 
+BLOCK_TRAVEL = 0.02  # piston travel (fraction of d) beyond feed.max_overlap that makes a tube blocked
+
+
 class SimulationError(RuntimeError):
     """A numerical failure (non-finite state, grain outside the tube); the message is one line."""
+
+
+class FeedBlocked(SimulationError):
+    """The enforced feed cannot push grains into the tube (a physical outcome, not a failure)."""
 
 
 class Simulation:
@@ -55,7 +62,7 @@ class Simulation:
         self._allocate(self._initial_capacity())
         self._n = np.zeros(1, dtype=np.int64)
         self._counters = np.zeros(P.NCOUNTERS, dtype=np.int64)
-        self._diag = np.zeros(3)  # last max overlap, last max feed overlap, running max (m)
+        self._diag = np.zeros(P.NDIAG)  # overlaps (m) and the piston impulse (N s), params.DIAG_*
         self._dirty = True        # arrays changed outside the time loop: rebuild + forces first
         self._feed_tail = None    # x of the last feed layer created
 
@@ -73,6 +80,11 @@ class Simulation:
         p[P.GX], p[P.GY], p[P.GZ] = self.gravity
         p[P.FEED_SPEED] = self.feed.entry_velocity if self.feed.enabled else 0.0
         p[P.FEED_MAX_OVERLAP] = c["feed.max_overlap"] * d
+        # A jammed tube keeps the piston pressing while it advances; a numerical blow-up near the
+        # feed is a spike. Blocked means pressing for as long as the piston takes to advance
+        # BLOCK_TRAVEL d, long enough for a blow-up to trip the other guards first.
+        speed = self.feed.entry_velocity if self.feed.enabled else 0.0
+        p[P.FEED_BLOCK_STEPS] = math.ceil(BLOCK_TRAVEL * d / (speed * self.dt)) if speed > 0 else 1
         p[P.SKIN] = c["numerics.neighbor_skin"] * d
         cut = d + p[P.SKIN]
         p[P.CELL_X0] = -2 * d
@@ -86,7 +98,9 @@ class Simulation:
         p[P.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
         p[P.GAS_INTERVAL] = c["numerics.gas_interval"]
         p[P.GAS_THETA] = c["gas.theta"]
-        p[P.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if self.feed.enabled else 0.0
+        # the volume of the entering grains joins the inlet gas flux (gas.inlet_displaced_volume)
+        displaced = self.feed.enabled and c["gas.inlet_displaced_volume"]
+        p[P.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if displaced else 0.0
         self._p = p
         self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
 
@@ -97,7 +111,9 @@ class Simulation:
         return GasField(length=c["tube.length"], diameter=c["tube.diameter"],
                         particle_diameter=c["particles.diameter"], viscosity=c["gas.viscosity"],
                         pressure=c["gas.pressure"], superficial_velocity=c["gas.superficial_velocity"],
-                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[P.FEED_VOLUME_RATE])
+                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[P.FEED_VOLUME_RATE],
+                        phi_max=c["gas.porosity_max"], face=c["gas.face_permeability"],
+                        deposit=c["gas.deposit_volume"], scheme=c["gas.scheme"])
 
     def _gas_arrays(self) -> tuple:
         gas = self.gas
@@ -267,6 +283,11 @@ class Simulation:
         status = self._counters[P.STATUS]
         if status == P.OK:
             return
+        if status == P.BLOCKED:
+            raise FeedBlocked(
+                f"the tube is blocked at t = {self.time:.4f} s: the feed piston pressed a grain by more "
+                f"than feed.max_overlap = {self.case['feed.max_overlap']:g} d while advancing "
+                f"{BLOCK_TRAVEL:g} d")
         what = {P.NONFINITE: "a grain position became non-finite (NaN/Inf)",
                 P.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
         raise SimulationError(f"{what} at t = {self.time:.6f} s; the time step or the contact "
@@ -328,11 +349,17 @@ class Simulation:
     def max_overlap(self) -> float:
         """Largest overlap (grain-grain, grain-wall or grain-feed) over every step since the start
         or the last reset_max_overlap(), m."""
-        return float(max(self._diag[0], self._diag[1], self._diag[2]))
+        return float(self._diag[:P.DIAG_RUNNING_MAX + 1].max())
 
     def reset_max_overlap(self) -> None:
         """Start a new window for max_overlap (run_case: every output frame)."""
-        self._diag[2] = 0.0
+        self._diag[P.DIAG_RUNNING_MAX] = 0.0
+
+    @property
+    def piston_impulse(self) -> float:
+        """Cumulative axial impulse the feed piston has exerted on the tube grains, N s (its
+        change over an interval, divided by the interval, is the mean piston force)."""
+        return float(self._diag[P.DIAG_PISTON_IMPULSE])
 
     def slice_fields(self, width: float) -> dict[str, np.ndarray]:
         """Slice averages over slices of `width` (m) from the inlet (papers §3.2).
@@ -369,9 +396,8 @@ class Simulation:
         if not self.case["gas.enabled"]:
             return 0.0
         gas = self.gas
-        paused = self._diag[1] > self._p[P.FEED_MAX_OVERLAP]
-        rate = 0.0 if paused else self._p[P.FEED_VOLUME_RATE]
-        return float(gas_kernels.pressure_drop(gas.P, gas.kappa, gas.u, gas.area, gas.g, rate))
+        return float(gas_kernels.pressure_drop(gas.P, gas.kappa, gas.u, gas.area, gas.g,
+                                               self._p[P.FEED_VOLUME_RATE]))
 
     def gas_pressure_slices(self, width: float) -> np.ndarray:
         """Gas pressure P' (cross-section mean) at the slice centres of `width` (m), Pa."""

@@ -29,13 +29,16 @@ G_VP = 5             # grain volume V_p, m3
 G_P0 = 6             # background pressure P0, Pa
 G_ETA = 7            # gas viscosity eta, Pa s
 G_DP = 8             # grain diameter d (Carman-Kozeny), m
-G_KAPPA_MAX = 9      # permeability cap, m2 (empty-tube Poiseuille D^2/32)
+G_PHI_MAX = 9        # porosity ceiling inside kappa only (numerical guard, gas.porosity_max)
 G_PHI_MIN = 10       # porosity floor for over-compressed nodes
 G_VS = 11            # superficial gas velocity v_s, m/s
 G_AREA = 12          # tube cross-section A = pi R^2, m2
 G_OUTLET_OPEN = 13   # 1.0: outlet face held at P' = 0; 0.0: prescribed outflow v_s A (papers' -S)
 G_SOLID_MIN = 14     # floor of 1 - phi_i in the drag: V_p / (8 max V_j), what one deposited grain reads
-NG = 15
+G_FACE_ARITHMETIC = 15  # face permeability: 0.0 harmonic mean of the two nodes, 1.0 arithmetic mean
+G_CELL_VOLUME = 16   # deposit normalised by 0.0: the node's tube volume V_j; 1.0: the grid cell hx hy hz
+G_SPLIT = 17         # 1.0: dimension-split theta scheme (gas_step_split) in couple; 0.0: unsplit gas_step
+NG = 18
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -93,28 +96,36 @@ def deposit(pos, vel, n, g, dep):
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def carman_kozeny(phi, g):
-    """Permeability (m2) of eq. (4), phi clamped to [phi_min, 1) and kappa capped at g[G_KAPPA_MAX]."""
-    p = min(max(phi, g[G_PHI_MIN]), 1.0 - 1e-12)
+    """Permeability (m2) of eq. (4), phi clamped to [phi_min, phi_max].
+
+    No other cap: the papers' model has no wall shear on the gas, so an empty stretch of tube
+    carries no pressure gradient and a lone grain feels almost no drag (V §4.3). phi_max only
+    keeps the conductances within ~1e7 of a plug's, where the block elimination stays accurate.
+    """
+    p = min(max(phi, g[G_PHI_MIN]), g[G_PHI_MAX])
     d = g[G_DP]
-    kappa = d * d * p * p * p / (180.0 * (1.0 - p) * (1.0 - p))
-    return min(kappa, g[G_KAPPA_MAX])
+    return d * d * p * p * p / (180.0 * (1.0 - p) * (1.0 - p))
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
 def update_fields(dep, area, g, phi, kappa, u):
     """Node porosity phi, permeability kappa (m2) and grain velocity u (m/s, eq. 8) from a deposit.
 
-    phi_j = max(1 - dep_j0 / V_j, phi_min) with V_j = hx * area[k, m] the node's tube volume;
-    nodes outside the tube (V_j = 0) read phi = 1.  u_j = dep_j[1:4] / dep_j0 (0 where no grains).
+    phi_j = max(1 - dep_j0 / V_j, phi_min) with V_j = hx * area[k, m] the node's tube volume, or
+    the whole grid cell hx hy hz when g[G_CELL_VOLUME] is set (eq. 8 read on the cubic grid);
+    nodes outside the tube (area 0) read phi = 1.  u_j = dep_j[1:4] / dep_j0 (0 where no grains).
     phi, kappa: (nx, ny, nz); u: (nx, ny, nz, 3).
     """
     nx, ny, nz = phi.shape
     hx = g[G_HX]
     phi_min = g[G_PHI_MIN]
+    cell = g[G_CELL_VOLUME] > 0.5
     for i in range(nx):
         for k in range(ny):
             for m in range(nz):
                 vol = hx * area[k, m]
+                if cell and vol > 0.0:
+                    vol = hx * g[G_HY] * g[G_HZ]
                 s = dep[i, k, m, 0]
                 f = 1.0 - s / vol if vol > 0.0 else 1.0
                 f = max(f, phi_min)
@@ -126,8 +137,11 @@ def update_fields(dep, area, g, phi, kappa, u):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def _harmonic(a, b):
-    """Face permeability of two half cells in series."""
+def _face(a, b, g):
+    """Face permeability (m2) between nodes of permeability a and b (gas.face_permeability):
+    harmonic mean (two half cells in series) or arithmetic mean."""
+    if g[G_FACE_ARITHMETIC] > 0.5:
+        return 0.5 * (a + b)
     return 2.0 * a * b / (a + b)
 
 
@@ -228,7 +242,7 @@ def apply_operator(P, kappa, area, ay, az, g, out):
         for m in range(nz):
             tx = c0 * area[k, m] / hx
             for i in range(nx - 1):
-                f = tx * _harmonic(kappa[i, k, m], kappa[i + 1, k, m]) * (P[i + 1, k, m] - P[i, k, m])
+                f = tx * _face(kappa[i, k, m], kappa[i + 1, k, m], g) * (P[i + 1, k, m] - P[i, k, m])
                 out[i, k, m] += f
                 out[i + 1, k, m] -= f
             if g[G_OUTLET_OPEN] > 0.5:
@@ -236,13 +250,13 @@ def apply_operator(P, kappa, area, ay, az, g, out):
     for i in range(nx):
         for k in range(ny - 1):
             for m in range(nz):
-                f = c0 * ay[k, m] / g[G_HY] * _harmonic(kappa[i, k, m], kappa[i, k + 1, m]) * (
+                f = c0 * ay[k, m] / g[G_HY] * _face(kappa[i, k, m], kappa[i, k + 1, m], g) * (
                     P[i, k + 1, m] - P[i, k, m])
                 out[i, k, m] += f
                 out[i, k + 1, m] -= f
         for k in range(ny):
             for m in range(nz - 1):
-                f = c0 * az[k, m] / g[G_HZ] * _harmonic(kappa[i, k, m], kappa[i, k, m + 1]) * (
+                f = c0 * az[k, m] / g[G_HZ] * _face(kappa[i, k, m], kappa[i, k, m + 1], g) * (
                     P[i, k, m + 1] - P[i, k, m])
                 out[i, k, m] += f
                 out[i, k, m + 1] -= f
@@ -274,14 +288,14 @@ def _assemble_blocks(kappa, phi, area, ay, az, g, tdt, tx, wmat):
                     diag += tdt * 2.0 * c0 * area[k, m] / hx * kappa[i, k, m]  # face at hx/2
                 wmat[i, b, b] += diag
                 if k < ny - 1:
-                    t = ty * ay[k, m] * _harmonic(kappa[i, k, m], kappa[i, k + 1, m])
+                    t = ty * ay[k, m] * _face(kappa[i, k, m], kappa[i, k + 1, m], g)
                     c = b + nz
                     wmat[i, b, b] += t
                     wmat[i, c, c] += t
                     wmat[i, b, c] -= t
                     wmat[i, c, b] -= t
                 if m < nz - 1:
-                    t = tz * az[k, m] * _harmonic(kappa[i, k, m], kappa[i, k, m + 1])
+                    t = tz * az[k, m] * _face(kappa[i, k, m], kappa[i, k, m + 1], g)
                     c = b + 1
                     wmat[i, b, b] += t
                     wmat[i, c, c] += t
@@ -322,7 +336,7 @@ def gas_step(P, phi, kappa, src, area, ay, az, g, dt, theta, wmat, wvec):
                     rhs += edt * lap[i, b]
                 y[i, b] = rhs
                 if i < nx - 1:
-                    tx[i, b] = c0 * area[k, m] / hx * _harmonic(kappa[i, k, m], kappa[i + 1, k, m])
+                    tx[i, b] = c0 * area[k, m] / hx * _face(kappa[i, k, m], kappa[i + 1, k, m], g)
     _assemble_blocks(kappa, phi, area, ay, az, g, tdt, tx, wmat)
     # forward elimination: S_i = M_i - a S_{i-1}^-1 a (a = -theta dt tx, diagonal); wmat[i] = S_i^-1
     for i in range(nx):
@@ -366,7 +380,8 @@ def gas_step(P, phi, kappa, src, area, ay, az, g, dt, theta, wmat, wvec):
 
 @nb.njit(cache=True, fastmath=FASTMATH)
 def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
-    """Dimension-split variant of gas_step (the papers' scheme), kept for comparison only.
+    """Dimension-split variant of gas_step: the papers' "each dimension is integrated separately"
+    (gas.scheme = split).
 
     Lie splitting: tridiagonal theta-solves along x (with src and the outlet), then y, then z.
     Its fixed point is not the steady state of eq. (5) when the porosity varies across the tube
@@ -402,7 +417,7 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
                 t_lo[i] = 0.0
                 t_hi[i] = 0.0
             for i in range(nx - 1):
-                t = tx * _harmonic(kappa[i, k, m], kappa[i + 1, k, m])
+                t = tx * _face(kappa[i, k, m], kappa[i + 1, k, m], g)
                 t_hi[i] = t
                 t_lo[i + 1] = t
             if open_outlet:
@@ -423,7 +438,7 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
                     t_lo[k] = 0.0
                     t_hi[k] = 0.0
                 for k in range(ny - 1):
-                    t = c0 * ay[k, m] / hy * _harmonic(kappa[i, k, m], kappa[i, k + 1, m])
+                    t = c0 * ay[k, m] / hy * _face(kappa[i, k, m], kappa[i, k + 1, m], g)
                     t_hi[k] = t
                     t_lo[k + 1] = t
                 _line_solve(vals, cap, t_lo, t_hi, t_end, s_dt, tdt, edt, a, b, c, d, ny)
@@ -441,7 +456,7 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
                     t_lo[m] = 0.0
                     t_hi[m] = 0.0
                 for m in range(nz - 1):
-                    t = c0 * az[k, m] / hz * _harmonic(kappa[i, k, m], kappa[i, k, m + 1])
+                    t = c0 * az[k, m] / hz * _face(kappa[i, k, m], kappa[i, k, m + 1], g)
                     t_hi[m] = t
                     t_lo[m + 1] = t
                 _line_solve(vals, cap, t_lo, t_hi, t_end, s_dt, tdt, edt, a, b, c, d, nz)
@@ -596,13 +611,21 @@ def couple(pos, vel, n, P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay,
     """One grain step of the gas: deposit, fields, `substeps` gas steps of dt/substeps, drag forces.
 
     The five kernels above in the required order; P is advanced in place and the drag goes to
-    force (see drag_forces).
+    force (see drag_forces).  g[G_SPLIT] selects the split scheme, which uses wvec as its work
+    array (GasField sizes wvec for both).
     """
     deposit(pos, vel, n, g, dep)
     update_fields(dep, area, g, phi, kappa, u)
     volume_sources(u, area, ay, az, g, feed_volume_rate, src)
     h = dt / substeps
-    for _ in range(substeps):
-        gas_step(P, phi, kappa, src, area, ay, az, g, h, theta, wmat, wvec)
+    if g[G_SPLIT] > 0.5:
+        nx, ny, nz = P.shape
+        longest = max(nx, max(ny, nz))
+        work = wvec.reshape(wvec.size)[:10 * longest].reshape((10, longest))
+        for _ in range(substeps):
+            gas_step_split(P, phi, kappa, src, area, ay, az, g, h, theta, work)
+    else:
+        for _ in range(substeps):
+            gas_step(P, phi, kappa, src, area, ay, az, g, h, theta, wmat, wvec)
     pressure_gradient(P, phi, kappa, u, g, feed_volume_rate, nodal)
     drag_forces(pos, n, nodal, g, force, accumulate)

@@ -18,7 +18,7 @@ GX = 12              # gravity vector, m/s2
 GY = 13
 GZ = 14
 FEED_SPEED = 15      # feed piston speed u_in, m/s (0: no feed)
-FEED_MAX_OVERLAP = 16  # piston pauses above this overlap, m
+FEED_MAX_OVERLAP = 16  # the tube is blocked when the piston presses a grain deeper than this, m
 SKIN = 17            # Verlet skin, m
 CELL_X0 = 18         # lower x edge of the cell grid, m
 CELL_DX = 19         # cell size along x, m
@@ -30,7 +30,8 @@ GAS_THETA = 24       # theta of the gas time scheme
 FEED_VOLUME_RATE = 25  # m_dot / rho_s, m3/s: gas displaced by the entering grains
 GT_WALL = 26         # tangential damping grain-wall, gamma_t capped at (2m/7)/dt, N s/m
 IMPLICIT_SPIN = 27   # 1.0: spin kicks scaled by 1/(1 + dt sum(gamma_t) r^2/I) of the viscous contacts
-NPARAMS = 28
+FEED_BLOCK_STEPS = 28  # consecutive steps above FEED_MAX_OVERLAP that make the tube blocked
+NPARAMS = 29
 
 # Integer cell-grid shape vector
 NCX = 0
@@ -44,13 +45,21 @@ REBUILDS = 2         # neighbour-list rebuilds
 STEPS = 3            # steps taken
 STATUS = 4           # 0 ok; >0 failure code (not cumulative)
 OVERFLOW = 5         # neighbour list overflowed (not cumulative; caller grows the list)
-STALLED_STEPS = 6    # steps the feed piston paused
+PRESSED_STEPS = 6    # consecutive steps the piston has pressed a grain beyond FEED_MAX_OVERLAP
 NCOUNTERS = 7
 
 # failure codes
 OK = 0
 NONFINITE = 1
 ESCAPED = 2
+BLOCKED = 3          # the enforced feed cannot push: piston overlap above FEED_MAX_OVERLAP
+
+# Float diagnostics vector `diag` (m, N s)
+DIAG_OVERLAP = 0       # max overlap of dynamic grains in the last force evaluation, m
+DIAG_FEED_OVERLAP = 1  # max overlap of a feed grain with a tube grain, last evaluation, m
+DIAG_RUNNING_MAX = 2   # running max of both since Simulation.reset_max_overlap, m
+DIAG_PISTON_IMPULSE = 3  # cumulative axial impulse of the feed piston on the tube grains, N s
+NDIAG = 4
 
 
 def new_params() -> np.ndarray:

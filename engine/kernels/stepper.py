@@ -59,7 +59,7 @@ def _kick(vel, omg, force, drag, torque, kin, n, p, kick_dt):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, feed_moves, counters):
+def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, counters):
     """Kick the dynamic grains by kick_dt, then move all grains one step; release feed grains fully
     inside the tube. One pass: the closing half kick of a step and the opening one of the next
     are merged into a single kick of dt.
@@ -77,7 +77,7 @@ def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt,
     rotate = p[P.ROTATION] > 0.0
     implicit = p[P.IMPLICIT_SPIN] > 0.0
     c = kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA]
-    feed_dx = p[P.FEED_SPEED] * dt if feed_moves else 0.0
+    feed_dx = p[P.FEED_SPEED] * dt
     limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
     outlet = p[P.TUBE_LENGTH]
     tube2 = p[P.TUBE_RADIUS] * p[P.TUBE_RADIUS]
@@ -129,7 +129,9 @@ def advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gi
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
-    diag[1] (max feed overlap of the last force evaluation) pauses the feed piston. `gas` is the
+    The feed piston always moves (the papers' enforced mass flow); when it has pressed a grain deeper
+    than p[FEED_MAX_OVERLAP] for p[FEED_BLOCK_STEPS] steps in a row, the step is completed and
+    counters[STATUS] = BLOCKED. `gas` is the
     tuple of gas arrays (P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g);
     `chunks` the thread work arrays of evaluate_contacts.
     """
@@ -148,11 +150,7 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
     kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
     taken = 0
     for _ in range(nsteps):
-        feed_moves = diag[1] <= p[P.FEED_MAX_OVERLAP]
-        if not feed_moves:
-            counters[P.STALLED_STEPS] += 1
-        need = _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, feed_moves,
-                           counters)
+        need = _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, counters)
         if counters[P.STATUS] != P.OK:
             break
         if need:
@@ -161,13 +159,19 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
             if counters[P.OVERFLOW]:
                 break  # velocities are at the half step: the caller's finish_step completes it
         if p[P.GAS_ON] > 0.0 and counters[P.STEPS] % int(p[P.GAS_INTERVAL]) == 0:
-            feed_rate = p[P.FEED_VOLUME_RATE] if feed_moves else 0.0
             couple(pos, vel, n, P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
-                   dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], feed_rate, drag, False)
+                   dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], p[P.FEED_VOLUME_RATE], drag, False)
         _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks)
         taken += 1
         kick_dt = dt
-    if taken == nsteps and taken > 0:
+        if diag[P.DIAG_FEED_OVERLAP] <= p[P.FEED_MAX_OVERLAP]:
+            counters[P.PRESSED_STEPS] = 0
+        else:
+            counters[P.PRESSED_STEPS] += 1
+            if counters[P.PRESSED_STEPS] >= p[P.FEED_BLOCK_STEPS]:
+                counters[P.STATUS] = P.BLOCKED
+                break
+    if taken > 0 and (taken == nsteps or counters[P.STATUS] == P.BLOCKED):
         _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
@@ -177,9 +181,16 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
 def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks):
     """Forces at the new positions; ends a step except for its closing half kick."""
     evaluate_contacts(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag, chunks)
-    # diag[2]: running maximum overlap (grain-grain, wall, feed) since the last
-    # Simulation.reset_max_overlap, so that the run guard sees every step, not only a frame's last
-    diag[2] = max(diag[2], diag[0], diag[1])
+    # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
+    # so that the run guard sees every step, not only a frame's last
+    diag[P.DIAG_RUNNING_MAX] = max(diag[P.DIAG_RUNNING_MAX], diag[P.DIAG_OVERLAP], diag[P.DIAG_FEED_OVERLAP])
+    if p[P.FEED_SPEED] > 0.0:
+        # the feed grains carry the reactions of their contacts: minus their sum is the piston's push
+        push = 0.0
+        for i in range(n):
+            if kin[i]:
+                push -= force[i, 0]
+        diag[P.DIAG_PISTON_IMPULSE] += push * p[P.DT]
     counters[P.STEPS] += 1
 
 
