@@ -30,6 +30,7 @@ include: "workflow/rules/curves.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/validation.smk"
 include: "workflow/rules/benchmarks.smk"
+include: "workflow/rules/identification.smk"
 
 
 rule all:
@@ -46,6 +47,8 @@ rule all:
         [f"results/benchmarks/scale/scale.{e}" for e in ("csv", "md", "png")],
         [f"results/benchmarks/stability/stability.{e}" for e in ("csv", "md", "png")],
         [f"results/benchmarks/restitution/restitution.{e}" for e in ("csv", "md", "png")],
+        [f"results/identification/identification.{e}" for e in ("csv", "md", "png")
+         if IDENTIFICATION.get("compare")],
 
 
 rule figures:

@@ -1,0 +1,84 @@
+"""The identification table (workflow/scripts/identification.py) on synthetic curve tables: each
+reading's verdict follows its own data and the papers' tolerances."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.append(str(ROOT / "workflow" / "scripts"))  # appended: statistics.py must not shadow stdlib
+import identification  # noqa: E402
+
+READINGS = ["gas.face_permeability", "gas.scheme"]
+STATEMENTS = [
+    {"id": "DP", "statement": "dp", "measure": "pressure_drop", "value": 39, "unit": "hPa/m", "tolerance": 7.8},
+    {"id": "REG", "statement": "regime", "measure": "regime", "expected": "plug"},
+    {"id": "PEAK", "statement": "peak", "measure": "argmax", "value": 0.1, "unit": "1", "tolerance": 0.05,
+     "x": "particles.friction", "within": [0.0, 0.3]},
+]
+
+
+def readings_table(dp_pa_m, regimes, friction=None):
+    """Rows of a sweep over the two reading keys (harmonic/arithmetic x unsplit)."""
+    rows = []
+    for k, face in enumerate(["harmonic", "arithmetic"]):
+        for j, mu in enumerate(friction or [0.5]):
+            rows.append({"gas.face_permeability": face, "gas.scheme": "unsplit", "particles.friction": mu,
+                         "pressure_drop": dp_pa_m[k][j] if friction else dp_pa_m[k],
+                         "pressure_drop_sem": 50.0, "regime": regimes[k]})
+    return pd.DataFrame(rows)
+
+
+def test_each_reading_gets_its_own_verdict():
+    tables = {"s": readings_table([3300.0, 4700.0], ["plug", "bulk"])}
+    compare = [{"statement": "DP", "sweep": "s"}, {"statement": "REG", "sweep": "s"}]
+    df = identification.table(STATEMENTS, tables, compare, READINGS)
+    dp = df[df["id"] == "DP"].set_index("reading")
+    # ours +- 2 x 0.5 hPa/m against 39 +- 7.8: 32-34 and 46-48 both overlap 31.2-46.8
+    assert dp["ours"].tolist() == pytest.approx([33.0, 47.0])
+    assert dp["ratio"].tolist() == pytest.approx([33 / 39, 47 / 39])
+    assert dp["within"].tolist() == ["yes", "yes"]
+    reg = df[df["id"] == "REG"].set_index("reading")
+    assert reg["within"].tolist() == ["yes", "no"]
+    assert reg.index.tolist() == ["face_permeability=harmonic, scheme=unsplit",
+                                  "face_permeability=arithmetic, scheme=unsplit"]
+
+
+def test_a_reading_outside_the_tolerance_is_not_within():
+    tables = {"s": readings_table([2000.0, 3900.0], ["plug", "plug"])}
+    df = identification.table(STATEMENTS, tables, [{"statement": "DP", "sweep": "s"}], READINGS)
+    # 20 +- 2 x 0.5 hPa/m misses 31.2-46.8; 39 is the paper's value
+    assert df["within"].tolist() == ["no", "yes"]
+
+
+def test_argmax_is_taken_within_each_reading():
+    friction = [0.1, 0.3]
+    tables = {"f": readings_table([[900.0, 700.0], [700.0, 900.0]], ["slug", "slug"], friction)}
+    df = identification.table(STATEMENTS, tables, [{"statement": "PEAK", "sweep": "f"}], READINGS)
+    assert df["ours"].tolist() == [0.1, 0.3]
+    assert df["within"].tolist() == ["yes", "no"]
+
+
+def test_where_selects_points_and_an_empty_selection_is_an_error():
+    tables = {"s": readings_table([3300.0, 4700.0], ["plug", "plug"])}
+    compare = [{"statement": "DP", "sweep": "s", "where": {"particles.friction": 0.5}}]
+    assert len(identification.table(STATEMENTS, tables, compare, READINGS)) == 2
+    compare = [{"statement": "DP", "sweep": "s", "where": {"particles.friction": 0.7}}]
+    with pytest.raises(ValueError, match="no row of sweep s"):
+        identification.table(STATEMENTS, tables, compare, READINGS)
+
+
+def test_markdown_counts_and_figure(tmp_path):
+    tables = {"s": readings_table([2000.0, 3900.0], ["plug", "bulk"])}
+    compare = [{"statement": "DP", "sweep": "s"}, {"statement": "REG", "sweep": "s"}]
+    df = identification.table(STATEMENTS, tables, compare, READINGS)
+    text = identification.markdown(df)
+    assert "| face_permeability=harmonic, scheme=unsplit | 1 | 2 |" in text
+    assert "| face_permeability=arithmetic, scheme=unsplit | 1 | 2 |" in text
+    identification.figure(df, tmp_path / "id.png")
+    from matplotlib.image import imread
+    assert imread(tmp_path / "id.png").ndim == 3

@@ -1,0 +1,154 @@
+"""Rule identification: each discretisation reading the papers leave open (the `readings` case keys
+crossed in the identification sweeps) against the papers' numbers for the most informative cases.
+
+One row per (statement, reading): the paper's value and tolerance (resources/paper_statements.yaml,
+never adjusted), ours +- standard error from the sweep's curve table, ratio and verdict with the
+validation rule's test (ours +- 2 standard errors overlapping the paper's interval). Measures:
+pressure_drop, n_particles (steady means), regime (the case's label against `expected`),
+slug_velocity (the curve summary's slug velocity, no error bar) and argmax (the value of the
+statement's `x` with the largest pressure drop within the reading's points).
+
+Standalone:
+    python workflow/scripts/identification.py --input statements=resources/paper_statements.yaml \
+        --input tables=results/curves/id_h_default.csv --output csv=/tmp/id.csv \
+        --output md=/tmp/id.md --output png=/tmp/id.png \
+        --params 'compare=[{"statement": "H-dp-default", "sweep": "id_h_default"}]' \
+        --params 'readings=["gas.face_permeability"]'
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from _helpers import ensure_parent, read_table, setup_logging, snakemake_or_cli, write_table
+from validation import TO_UNIT, paper_interval, paper_text
+
+NAN = float("nan")
+COLUMN = {"pressure_drop": ("pressure_drop", "pressure_drop_sem"),
+          "n_particles": ("n_particles", "n_particles_sem"),
+          "slug_velocity": ("slug_velocity", None)}
+
+
+def reading_label(row: pd.Series, readings: list[str]) -> str:
+    """'face_permeability=harmonic, scheme=unsplit, ...' from the reading keys of a table row."""
+    return ", ".join(f"{key.split('.', 1)[1]}={row[key]}" for key in readings if key in row)
+
+
+def verdict(value: float, error: float, st: dict) -> str:
+    """'yes' when value +- 2 error overlaps the paper's interval (in the statement's unit)."""
+    lo, hi, _ = paper_interval(st)
+    reach = 2 * error if math.isfinite(error) else 0.0
+    return "yes" if value + reach >= lo and value - reach <= hi else "no"
+
+
+def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str) -> list[dict]:
+    """One result per reading (group of rows sharing the reading keys)."""
+    keys = [k for k in readings if k in rows]
+    groups = rows.groupby(keys, sort=False, dropna=False) if keys else [((), rows)]
+    out = []
+    for _, group in groups:
+        label = reading_label(group.iloc[0], readings)
+        if measure == "regime":
+            value = str(group["regime"].iloc[0])
+            out.append({"reading": label, "ours": value, "ours_error": NAN, "ratio": NAN,
+                        "within": "yes" if value == st["expected"] else "no"})
+            continue
+        if measure == "argmax":
+            x = st["x"]
+            lo, hi = st.get("within", [-math.inf, math.inf])
+            inside = group[(group[x] >= lo) & (group[x] <= hi)]
+            value = float(inside.loc[inside["pressure_drop"].idxmax(), x])
+            error = NAN
+        else:
+            column, sem = COLUMN[measure]
+            value = float(group[column].iloc[0]) * TO_UNIT.get(st.get("unit", "1"), 1.0)
+            error = (float(group[sem].iloc[0]) * TO_UNIT.get(st.get("unit", "1"), 1.0)
+                     if sem else NAN)
+        mid = paper_interval(st)[2]
+        out.append({"reading": label, "ours": value, "ours_error": error,
+                    "ratio": value / mid if mid else NAN,
+                    "within": verdict(value, error, st) if math.isfinite(value) else "not available"})
+    return out
+
+
+def table(statements: list[dict], tables: dict[str, pd.DataFrame], compare: list[dict],
+          readings: list[str]) -> pd.DataFrame:
+    """The identification table: one row per (statement, reading)."""
+    by_id = {st["id"]: st for st in statements}
+    rows = []
+    for item in compare:
+        st = by_id[item["statement"]]
+        measure = item.get("measure") or ("argmax" if st["measure"] == "argmax" else st["measure"])
+        data = tables[item["sweep"]]
+        for key, value in (item.get("where") or {}).items():
+            data = data[np.isclose(data[key], value)] if not isinstance(value, str) else data[data[key] == value]
+        if data.empty:
+            raise ValueError(f"identification: no row of sweep {item['sweep']} matches {item.get('where')}")
+        for result in compare_rows(st, data, readings, measure):
+            rows.append({"id": st["id"], "statement": st["statement"], "sweep": item["sweep"],
+                         "measure": measure, "paper_value": paper_text(st),
+                         "unit": st.get("unit", ""), **result})
+    return pd.DataFrame(rows)
+
+
+def markdown(df: pd.DataFrame) -> str:
+    """The table as markdown, and each reading's count of statements within tolerance."""
+    lines = ["# Model identification: the papers' open discretisation readings", "",
+             "Generated by rule `identification` (config/identification.yaml). Ours +- 2 standard "
+             "errors against the papers' tolerance (resources/paper_statements.yaml).", "",
+             "| reading | within | of |", "|---|---|---|"]
+    for reading, group in df.groupby("reading", sort=False):
+        lines.append(f"| {reading} | {(group['within'] == 'yes').sum()} | {len(group)} |")
+    lines += ["", "| statement | reading | paper | ours | ratio | within |", "|---|---|---|---|---|---|"]
+    for _, r in df.iterrows():
+        ours = r["ours"] if isinstance(r["ours"], str) else (
+            f"{r['ours']:.3g} +- {r['ours_error']:.2g}" if math.isfinite(r["ours_error"]) else f"{r['ours']:.3g}")
+        ratio = f"{r['ratio']:.2f}" if isinstance(r["ratio"], float) and math.isfinite(r["ratio"]) else ""
+        lines.append(f"| {r['id']} | {r['reading']} | {r['paper_value']} | {ours} {r['unit'] if not isinstance(r['ours'], str) else ''} "
+                     f"| {ratio} | {r['within']} |")
+    return "\n".join(lines) + "\n"
+
+
+def figure(df: pd.DataFrame, path) -> None:
+    """Grid of statements (rows) against readings (columns): green within, red outside, with the
+    ratio ours / paper (or our regime) written in each cell."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ids = list(dict.fromkeys(df["id"]))
+    readings = list(dict.fromkeys(df["reading"]))
+    grid = np.full((len(ids), len(readings)), np.nan)
+    fig, ax = plt.subplots(figsize=(2.2 + 1.6 * len(readings), 1.2 + 0.45 * len(ids)))
+    for _, r in df.iterrows():
+        i, j = ids.index(r["id"]), readings.index(r["reading"])
+        grid[i, j] = {"yes": 1.0, "no": 0.0}.get(r["within"], np.nan)
+        text = r["ours"] if isinstance(r["ours"], str) else (
+            f"{r['ratio']:.2f}" if math.isfinite(r["ratio"]) else f"{r['ours']:.3g}")
+        ax.text(j, i, text, ha="center", va="center", fontsize=8)
+    ax.imshow(grid, cmap="RdYlGn", vmin=-0.3, vmax=1.3, aspect="auto")
+    ax.set_xticks(range(len(readings)), [r.replace(", ", "\n") for r in readings], fontsize=7)
+    ax.set_yticks(range(len(ids)), ids, fontsize=8)
+    ax.set_title("Each reading against the papers: ours / paper (regime), green = within tolerance",
+                 fontsize=9)
+    fig.tight_layout()
+    fig.savefig(ensure_parent(path), dpi=120)
+    plt.close(fig)
+
+
+def main(smk) -> None:
+    log = setup_logging(smk)
+    statements = yaml.safe_load(Path(smk.input.statements).read_text())
+    tables = {Path(p).stem: read_table(p) for p in smk.input.tables}
+    df = table(statements, tables, list(smk.params.compare), list(smk.params.readings))
+    write_table(df, smk.output.csv)
+    ensure_parent(smk.output.md).write_text(markdown(df))
+    figure(df, smk.output.png)
+    log.info("%d rows\n%s", len(df), df.to_string())
+
+
+if __name__ == "__main__":
+    main(snakemake_or_cli(globals(), "identification"))
