@@ -51,10 +51,11 @@ def open_case_file(path: str | Path):
     if not path.is_file():
         raise ExportError(f"case file {str(path)!r} does not exist")
     try:
-        with xr.open_dataset(path) as ds:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
             ds = ds.load()
     except (OSError, ValueError) as err:
-        raise ExportError(f"case file {str(path)!r} cannot be read as NetCDF: {err}") from None
+        reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ExportError(f"case file {str(path)!r} cannot be read as NetCDF: {reason}") from None
     if "porosity" not in ds or "particle_diameter" not in ds.attrs:
         raise ExportError(f"case file {str(path)!r} is not a plugsim case file (no porosity slices)")
     return ds

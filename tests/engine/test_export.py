@@ -156,13 +156,14 @@ def test_export_of_a_file_without_whole_tube_snapshots_exits_2_naming_the_key(ds
 
 @pytest.mark.parametrize("command, message", [
     (["export", "missing.nc"], "case file 'missing.nc' does not exist"),
+    (["animate", "{file}"], "cannot be read as NetCDF"),
     (["export", "{case}", "--out", "{file}"], "is a file; it must be a folder"),
     (["export", "{case}", "--out", "{full}"], "is a non-empty folder that is not a plugsim export"),
     (["animate", "{case}", "--out", "movie.avi"], "must end in one of .gif, .mp4, .png"),
     (["animate", "{case}", "--fps", "0"], "--fps 0: allowed 0 < fps <= 100"),
 ])
 def test_bad_export_and_animate_input_exits_2_with_one_line(case_file, tmp_path, capsys, command, message):
-    (tmp_path / "a_file").write_text("")
+    (tmp_path / "a_file").write_text("not NetCDF")
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "notes.txt").write_text("mine")
     args = [a.format(case=case_file, file=tmp_path / "a_file", full=tmp_path / "full") for a in command]
