@@ -68,6 +68,8 @@ class _Frames:
             self.ax_g.axhline(side, color="0.3", lw=0.8)
         self.ax_g.set_ylim(-1.15 * r_mm, 1.15 * r_mm)
         self.ax_g.set_xlim(0, length)
+        self.ax_g.set_xlabel("x along the tube from the inlet (m)")
+        self.ax_g.set_ylabel("z across the tube (mm)")
         # the side view is stretched along z: grains drawn at their true width along x (at least
         # 2 pt, to stay visible) but no larger than their true height
         self.fig.canvas.draw()
@@ -76,8 +78,6 @@ class _Frames:
         along = box.width * 72 / self.fig.dpi * d / length
         across = box.height * 72 / self.fig.dpi * 1e3 * d / (2.3 * r_mm)
         self.grains.set_sizes([min(across, max(along, 2.0)) ** 2])
-        self.ax_g.set_xlabel("x along the tube from the inlet (m)")
-        self.ax_g.set_ylabel("z (mm)")
 
     def draw(self, k: int):
         t, pos, vel = self.snapshots[k][:3]
