@@ -217,6 +217,10 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("output.snapshot_interval", 0.01, "s",
         "Simulated time between snapshots (a multiple of output.interval).", low=0.0, low_open=True,
         high=100.0),
+    Key("output.tube_snapshot_interval", 0.0, "s",
+        "Simulated time between snapshots of every grain in the tube (positions, velocities, angular "
+        "velocities) for `plugsim export` and `plugsim animate`; 0 = none. A multiple of "
+        "output.interval.", low=0.0, high=100.0),
 ]}
 
 
@@ -332,6 +336,11 @@ class Case:
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise CaseError(f"output.snapshot_interval = {self['output.snapshot_interval']:g} s must be a "
                             f"whole multiple of output.interval = {self['output.interval']:g} s")
+        tube = self["output.tube_snapshot_interval"]
+        ratio = tube / self["output.interval"]
+        if tube > 0 and (abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1):
+            raise CaseError(f"output.tube_snapshot_interval = {tube:g} s must be 0 (none) or a whole "
+                            f"multiple of output.interval = {self['output.interval']:g} s")
 
 
 def keys_markdown() -> str:

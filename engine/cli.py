@@ -1,4 +1,4 @@
-"""The `plugsim` command line: run, keys, check, bench."""
+"""The `plugsim` command line: run, keys, check, export, animate, bench."""
 
 from __future__ import annotations
 
@@ -68,6 +68,32 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export(args: argparse.Namespace) -> int:
+    """ParaView files of a case file; bad input exits 2 with one line."""
+    from .export import ExportError, export_case
+    try:
+        done = export_case(args.case_file, args.out)
+    except ExportError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 2
+    print(f"wrote {done.folder}/: grains.pvd ({done.grain_files} snapshots), slices.pvd "
+          f"({done.slice_files} frames), {done.size / 1e6:.1f} MB")
+    return 0
+
+
+def _animate(args: argparse.Namespace) -> int:
+    """An animation of a case file; bad input exits 2 with one line."""
+    from .animate import animate_case
+    from .export import ExportError
+    try:
+        done = animate_case(args.case_file, args.out, fps=args.fps)
+    except ExportError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 2
+    print(f"wrote {done.path}: {done.frames} frames, {done.size / 1e6:.1f} MB")
+    return 0
+
+
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     from . import bench
     return bench.main(rest)
@@ -98,6 +124,20 @@ def main(argv: list[str] | None = None) -> int:
                         "faster on 2 idle cores, a vertical one ~1.1x, docs/performance.md; results "
                         "differ from 1 thread by rounding only)")
     p.set_defaults(func=_run)
+    p = sub.add_parser("export", help="ParaView files of a case file's whole-tube grain snapshots "
+                                      "(output.tube_snapshot_interval) and slice fields")
+    p.add_argument("case_file", help="case file written by `plugsim run`, e.g. results/h.nc")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="folder to write (default: next to the case file, CASE_vtk)")
+    p.set_defaults(func=_export)
+    p = sub.add_parser("animate", help="GIF (or MP4 with ffmpeg) of the slice porosity over x and t "
+                                       "and of the grains moving through the tube")
+    p.add_argument("case_file", help="case file with whole-tube snapshots, e.g. results/h.nc")
+    p.add_argument("--out", default=None, metavar="FILE",
+                   help="FILE.gif, FILE.mp4 (needs ffmpeg) or FILE.png (the last frame); "
+                        "default: next to the case file, CASE.gif")
+    p.add_argument("--fps", type=float, default=10.0, help="frames (snapshots) per second (default 10)")
+    p.set_defaults(func=_animate)
     p = sub.add_parser("bench", help="grain-engine benchmark on the standard dense case", add_help=False)
     p.set_defaults(func=_bench)
     # `bench` options belong to engine.bench's own parser (REMAINDER would drop leading options)

@@ -47,6 +47,10 @@ class Recorder:
         self.snapshots: list[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = []
         self._frames_per_snapshot = int(round(case["output.snapshot_interval"] / case["output.interval"]))
         self._last_impulse = (0.0, 0.0)  # (time, piston impulse) of the previous frame
+        # whole-tube snapshots: (time, position, velocity, angular velocity, id); 0 frames = none
+        self.tube_snapshots: list[tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._frames_per_tube_snapshot = int(round(case["output.tube_snapshot_interval"]
+                                                   / case["output.interval"]))
 
     def sample(self, sim) -> None:
         """Record one frame of `sim` (a Simulation)."""
@@ -72,6 +76,10 @@ class Recorder:
             inside = (pos[:, 0] >= c["output.snapshot_x_min"]) & (pos[:, 0] <= c["output.snapshot_x_max"])
             self.snapshots.append((sim.time, pos[inside].astype(np.float32), vel[inside].astype(np.float32),
                                    ids[inside]))
+        if self._frames_per_tube_snapshot and (len(self.times) - 1) % self._frames_per_tube_snapshot == 0:
+            self.tube_snapshots.append((sim.time, sim.positions.astype(np.float32),
+                                        sim.velocities.astype(np.float32),
+                                        sim.angular_velocities.astype(np.float32), sim.ids.copy()))
 
     def dataset(self, attrs: dict) -> xr.Dataset:
         """The case file as an xarray Dataset with CF units and long names."""
@@ -90,6 +98,8 @@ class Recorder:
         ds = xr.Dataset(data, coords=coords, attrs=attrs)
         if self.case["output.snapshots"]:
             ds = ds.merge(self._snapshot_dataset())
+        if self._frames_per_tube_snapshot:
+            ds = ds.merge(self._tube_snapshot_dataset())
         return ds
 
     @staticmethod
@@ -124,6 +134,40 @@ class Recorder:
             coords={"snapshot_time": ("snapshot_time", times, {"units": "s", "long_name": "snapshot time"}),
                     "xyz": ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})})
 
+    def _tube_snapshot_dataset(self) -> xr.Dataset:
+        """Whole-tube snapshots as a CF contiguous ragged array (sample dimension `tube_grain`)."""
+        snaps = self.tube_snapshots
+        stack = (lambda k, shape: np.concatenate([s[k] for s in snaps]) if snaps else np.zeros(shape))
+        vector = ("tube_grain", "xyz")
+        counts = np.array([len(s[1]) for s in snaps], dtype=np.int64)
+        times = np.array([s[0] for s in snaps], dtype=float)
+        return xr.Dataset(
+            {"tube_snapshot_count": ("tube_snapshot_time", counts, {
+                "long_name": "grains in the tube at each whole-tube snapshot time",
+                "sample_dimension": "tube_grain", "units": "1"}),
+             "tube_snapshot_position": (vector, stack(1, (0, 3)).astype(np.float32), {
+                 "units": "m", "long_name": "grain centre (x along the tube, y and z across)"}),
+             "tube_snapshot_velocity": (vector, stack(2, (0, 3)).astype(np.float32), {
+                 "units": "m s-1", "long_name": "grain velocity"}),
+             "tube_snapshot_angular_velocity": (vector, stack(3, (0, 3)).astype(np.float32), {
+                 "units": "rad s-1", "long_name": "grain angular velocity"}),
+             "tube_snapshot_grain_id": ("tube_grain", stack(4, (0,)).astype(np.int64), {
+                 "units": "1", "long_name": "grain id (order of entry into the tube)"})},
+            coords={"tube_snapshot_time": ("tube_snapshot_time", times, {
+                        "units": "s", "long_name": "whole-tube snapshot time"}),
+                    "xyz": ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})})
+
+
+def software_versions() -> dict:
+    """Versions of the engine, Python, numpy and numba that ran a case (global attributes)."""
+    import platform
+
+    import numba
+
+    from . import __version__
+    return {"engine_version": __version__, "python_version": platform.python_version(),
+            "numpy_version": np.__version__, "numba_version": numba.__version__}
+
 
 def global_attributes(case, extra: dict) -> dict:
     """CF global attributes: provenance, the full configuration, flat geometry for readers."""
@@ -135,7 +179,7 @@ def global_attributes(case, extra: dict) -> dict:
         "history": f"{datetime.now(timezone.utc).isoformat(timespec='seconds')} plugsim run",
         "references": "Strauss, McNamara, Herrmann: Plug conveying in a horizontal tube; "
                       "Strauss et al.: Plug conveying in a vertical tube",
-        "engine_version": __version__,
+        **software_versions(),
         "config_yaml": case.to_yaml(),
         "seed": case["run.seed"],
         "tube_length": case["tube.length"], "tube_diameter": case["tube.diameter"],

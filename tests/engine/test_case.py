@@ -36,6 +36,10 @@ def test_dotted_override_changes_only_that_key():
     ("gas.enabled=3", r"gas.enabled = 3 must be true or false"),
     ("particles.diameter=0.004", r"particles.diameter = 0.004 m must be < tube.diameter / 2"),
     ("gas.viscosity=.nan", r"gas.viscosity = nan is not finite"),
+    ("output.tube_snapshot_interval=-0.05", r"output.tube_snapshot_interval = -0.05 is out of range: "
+                                            r"allowed 0 <= value <= 100"),
+    ("output.tube_snapshot_interval=0.015", r"output.tube_snapshot_interval = 0.015 s must be 0 \(none\) "
+                                            r"or a whole multiple of output.interval = 0.01 s"),
 ])
 def test_bad_values_are_refused_naming_the_key(override, message):
     with pytest.raises(CaseError, match=message):
