@@ -13,6 +13,7 @@
 # (default 60). Exit 0 on success, 2 on a bad argument, 77 when a prerequisite is missing (not root,
 # no apt-get, /etc/slurm/slurm.conf taken), 1 when something failed.
 set -euo pipefail
+export PATH=$PATH:/usr/sbin:/sbin  # the daemons, for a caller whose PATH lacks them
 
 usage() { echo "usage: $0 start|stop DIR" >&2; exit 2; }
 [ $# -eq 2 ] || usage

@@ -71,9 +71,9 @@ def slurm(tmp_path_factory):
         unavailable("snakemake-executor-plugin-slurm is not installed (pip install -e '.[test]')", ci)
     directory = tmp_path_factory.mktemp("slurm")
     ctld_port, slurmd_port = free_ports(2)
-    env = {**os.environ, "SLURM_CONF": str(directory / "slurm.conf"),
-           "SLURMCTLD_PORT": str(ctld_port), "SLURMD_PORT": str(slurmd_port)}
-    env.pop("SLURM_JOB_ID", None)  # a test run inside a SLURM job still submits to this cluster
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SLURM")}  # not an outer job's
+    env |= {"SLURM_CONF": str(directory / "slurm.conf"),
+            "SLURMCTLD_PORT": str(ctld_port), "SLURMD_PORT": str(slurmd_port)}
     try:
         # an install from Debian's packages takes about a minute
         start = subprocess.run(["bash", str(SETUP), "start", str(directory)], env=env,
@@ -124,9 +124,10 @@ def test_unavailable_skips_outside_ci_and_fails_in_ci():
                     reason="needs root and setpriv to run the script as another user")
 def test_setup_reports_a_missing_prerequisite_with_its_own_exit_code(tmp_path):
     """Not root: exit 77 (the fixture's skip, or failure in CI) and one line saying why."""
-    run = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
-                          "bash", str(SETUP), "start", str(tmp_path / "cluster")],
-                         capture_output=True, text=True, timeout=60)
+    with SETUP.open() as script:  # read as root: the checkout may be closed to other users
+        run = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups",
+                              "bash", "-s", "start", str(tmp_path / "cluster")],
+                             stdin=script, cwd="/", capture_output=True, text=True, timeout=60)
     assert run.returncode == MISSING, run.stderr
     assert run.stderr.strip() == "slurm_setup: must run as root to start slurmd and munged"
 
