@@ -108,7 +108,8 @@ link_config() {
         [ "$target" = "$conf" ] && return 0
         other=$(dirname "$target")
         if [ -e "$target" ]; then  # a dangling link (its cluster's directory removed) is replaced
-            [ -e "$other/$marker" ] || missing "$system_conf links to $target, not a test cluster's; not replacing it"
+            [ -e "$other/$marker" ] \
+                || missing "$system_conf links to $target, not a test cluster's; not replacing it"
             alive "$other/slurmctld.pid" && missing "another test cluster runs from $other"
         fi
     elif [ -e "$system_conf" ]; then
@@ -139,7 +140,8 @@ wait_idle() {
         sleep 1
         t=$((t + 1))
     done
-    fail "the node is '${state:-not reported}' after ${timeout_s} s, not idle; see $dir/slurmctld.log and $dir/slurmd.log"
+    fail "the node is '${state:-not reported}' after ${timeout_s} s, not idle;" \
+        "see $dir/slurmctld.log and $dir/slurmd.log"
 }
 
 start() {
@@ -149,7 +151,8 @@ start() {
     [ -s "$conf" ] || write_config
     link_config
     start_munge
-    alive "$dir/slurmctld.pid" || slurmctld -f "$conf" || fail "slurmctld did not start, see $dir/slurmctld.log"
+    alive "$dir/slurmctld.pid" || slurmctld -f "$conf" \
+        || fail "slurmctld did not start, see $dir/slurmctld.log"
     alive "$dir/slurmd.pid" || slurmd -f "$conf" || fail "slurmd did not start, see $dir/slurmd.log"
     wait_idle
     echo "slurm_setup: node $(hostname -s) idle (SLURM_CONF=$conf)" >&2

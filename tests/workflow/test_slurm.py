@@ -53,7 +53,8 @@ def free_ports(count: int) -> list[int]:
 def daemons_alive(directory: Path) -> list[str]:
     """Pid files in `directory` whose daemon still runs."""
     alive = []
-    for pidfile in (directory / "slurmctld.pid", directory / "slurmd.pid", directory / "munge/munged.pid"):
+    for name in ("slurmctld.pid", "slurmd.pid", "munge/munged.pid"):
+        pidfile = directory / name
         if pidfile.exists() and pidfile.read_text().strip():
             try:
                 os.kill(int(pidfile.read_text()), 0)
@@ -160,8 +161,9 @@ def test_profile_documents_valid_keys_for_a_cluster_without_accounting(tmp_path)
         profile = tmp_path / status
         profile.mkdir()
         (profile / "config.yaml").write_text(text.replace("command: squeue", f"command: {status}"))
-        run = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--snakefile", str(ROOT / "Snakefile"),
-                              "--workflow-profile", str(profile), "--configfile", "config/ci.yaml"],
+        run = subprocess.run([sys.executable, "-m", "snakemake", "-n", "--snakefile",
+                              str(ROOT / "Snakefile"), "--workflow-profile", str(profile),
+                              "--configfile", "config/ci.yaml"],
                              cwd=ROOT, capture_output=True, text=True, timeout=300)
         assert run.returncode == expected, run.stderr[-3000:]
     assert "Invalid status command" in run.stderr
