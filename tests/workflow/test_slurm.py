@@ -76,7 +76,7 @@ def slurm(tmp_path_factory):
     env |= {"SLURM_CONF": str(directory / "slurm.conf"),
             "SLURMCTLD_PORT": str(ctld_port), "SLURMD_PORT": str(slurmd_port)}
     try:
-        # an install from Debian's packages takes about a minute
+        # the packages' install took 10 s here; the limit leaves room for a slow mirror
         start = subprocess.run(["bash", str(SETUP), "start", str(directory)], env=env,
                                capture_output=True, text=True, timeout=900)
         if start.returncode == MISSING:
@@ -206,7 +206,7 @@ def test_two_cases_run_as_slurm_jobs_through_the_profile(slurm, tmp_path):
             # a sweep case runs until steady, at most run.duration
             assert ds.attrs["stop_reason"] in {"steady", "max_duration"}
             t_end = float(ds["time"].max())
-            assert 0 < t_end <= 1.0 + 1e-9
+            assert 0 < t_end <= 1.0 + 1e-9  # 1e-9 s: the float sum of the time steps
             if ds.attrs["stop_reason"] == "max_duration":
                 assert t_end == pytest.approx(1.0)
             assert (ds["n_particles"] > 0).any()
@@ -228,7 +228,7 @@ def test_two_cases_run_as_slurm_jobs_through_the_profile(slurm, tmp_path):
         assert records[job_id]["state"] == "COMPLETED", records[job_id]
         assert records[job_id]["node"] == host
         assert records[job_id]["comment"].startswith("rule_simulate_wildcards_")
-        assert job_log.exists()
+        assert "rule simulate" in job_log.read_text()  # the job's own snakemake ran the case
     wildcards = sorted(r["comment"] for j, r in records.items() if j in simulate)
     assert all("slurm_pair" in w for w in wildcards)
     assert [float(re.search(r"restitution~([0-9.]+)", w).group(1)) for w in wildcards] == RESTITUTIONS
