@@ -86,6 +86,24 @@ class Recorder:
             ds = ds.merge(self._snapshot_dataset())
         return ds
 
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset, case) -> "Recorder":
+        """The recorder that wrote the case file `ds` (loaded), holding the same frames bit for bit,
+        to continue recording into."""
+        rec = cls(case)
+        rec.times = [float(t) for t in ds.time.values]
+        for name in SERIES:
+            rec.series[name] = list(ds[name].values)
+        for name in FIELDS:
+            rec.fields[name] = list(ds[name].values.astype(np.float32))
+        if case["output.snapshots"]:
+            ends = np.cumsum(ds.snapshot_count.values)
+            pos, vel, ids = (ds[name].values for name in
+                             ("snapshot_position", "snapshot_velocity", "snapshot_grain_id"))
+            rec.snapshots = [(float(t), pos[end - n:end], vel[end - n:end], ids[end - n:end])
+                             for t, n, end in zip(ds.snapshot_time.values, ds.snapshot_count.values, ends)]
+        return rec
+
     @staticmethod
     def final_state(sim) -> xr.Dataset:
         """Every grain in the tube at the end of the run (float64), the start of a warm run."""
