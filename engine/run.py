@@ -209,7 +209,8 @@ def _load_finished(out: Path, case: Case, digest: str, frames: int):
                 return None
             sim = pickle.loads(ds.restart_state.values.tobytes())
             return sim, Recorder.from_dataset(ds.load(), case)
-    except (OSError, ValueError, KeyError):
+    except Exception as err:  # unreadable, or a state the code cannot load: run from the start
+        log.warning("not continuing %s (%s): running from the start", out, str(err).splitlines()[0])
         return None
 
 
@@ -298,12 +299,12 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
         resumed = _load_finished(out, case, digest, frames)
         if resumed:
             log.info("continuing %s from its end, t = %.3f s, to %g s", out, resumed[0].time, duration)
+    if not kernels_compiled():
+        log.info("compiling kernels (first run only, up to two minutes)")
     if resumed:
         sim, recorder = resumed
         sim.case = recorder.case = case  # differs at most in keys that only extend a run
     else:
-        if not kernels_compiled():
-            log.info("compiling kernels (first run only, up to two minutes)")
         sim, recorder = Simulation(case, threads), Recorder(case)
         if start is not None:
             sim.add_particles(*start)
