@@ -164,17 +164,19 @@ def _wait_for(proc, text, timeout=120):
 def test_sigterm_and_sigint_save_a_checkpoint_and_resume_to_the_uninterrupted_result(tmp_path):
     """SIGTERM, then SIGINT of the resumed run: each exits (143, 130) with one line naming the
     checkpoint and the command, and the run resumed twice equals the uninterrupted one bit for bit.
-    No periodic checkpoint (default interval, 120 s): the checkpoints are the interrupts' own."""
-    args = ["run", str(CASE), "--out", str(tmp_path / "x.nc"), *sets(TINY + ["run.duration=2.0"])]
-    reference = tmp_path / "reference.nc"
-    run_case(Case.from_yaml(CASE, TINY + ["run.duration=2.0"]), reference)
+    The first run asks for 2.5 s, the resumed ones for 3 s: a checkpoint continues to a longer
+    duration. No periodic checkpoint (default interval, 120 s): the checkpoints are the interrupts'."""
     out = tmp_path / "x.nc"
-    for signum, resumed in ((signal.SIGTERM, False), (signal.SIGINT, True)):
+    command = {d: ["run", str(CASE), "--out", str(out), *sets(TINY + [f"run.duration={d}"])] for d in ("2.5", "3.0")}
+    reference = tmp_path / "reference.nc"
+    run_case(Case.from_yaml(CASE, TINY + ["run.duration=3.0"]), reference)
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    for signum, args in ((signal.SIGTERM, command["2.5"]), (signal.SIGINT, command["3.0"])):
         proc = subprocess.Popen([sys.executable, "-m", "engine.cli", *args], stderr=subprocess.PIPE, text=True,
-                                env=dict(os.environ, NUMBA_NUM_THREADS="1"))
+                                env=env)
         started = _wait_for(proc, "case x.nc: dt")  # the last line before the first frame
-        assert ("resuming" in started[0]) == resumed, started
-        time.sleep(1.0)  # some frames: ~4 s of wall time remain at most
+        assert ("resuming" in started[0]) == (signum == signal.SIGINT), started
+        time.sleep(1.0)  # some frames; seconds of CPU time remain (2 s simulated cost ~3 s)
         proc.send_signal(signum)
         rest = proc.stderr.read().strip().splitlines()
         assert proc.wait(timeout=60) == 128 + signum, rest
@@ -182,7 +184,7 @@ def test_sigterm_and_sigint_save_a_checkpoint_and_resume_to_the_uninterrupted_re
         assert rest[0].endswith(f"checkpoint {checkpoint_path(out)}; resume with the same command: plugsim "
                                 + " ".join(args)), rest
         assert checkpoint_path(out).exists() and not out.exists()
-    res = plugsim(*args, env=dict(os.environ, NUMBA_NUM_THREADS="1"))
+    res = plugsim(*command["3.0"], env=env)
     assert res.returncode == 0, res.stderr
     assert "compiling kernels" not in res.stderr  # the cache is warm by now
     assert not checkpoint_path(out).exists()
