@@ -196,8 +196,29 @@ def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads:
     return result
 
 
+def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Refuse bad options before any work (parser.error: exit 2, one line naming the option)."""
+    from .simulation import check_threads
+
+    for name in ("steps", "repeats"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} = {getattr(args, name)}: allowed 1 or more")
+    try:
+        check_threads(args.threads)
+    except ValueError as err:
+        parser.error(f"--threads: {err}")
+    if args.write_lammps:
+        out = Path(args.write_lammps)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            parser.error(f"--write-lammps {out}: cannot create the directory ({err.strerror})")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="plugsim bench", description=__doc__.splitlines()[0])
+    from .cli import OneLineParser
+
+    parser = OneLineParser(prog="plugsim bench", description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="steps per repeat (default 2000)")
     parser.add_argument("--repeats", type=int, default=5, help="repeats; the median is reported")
     parser.add_argument("--no-compile", action="store_true", help="skip the compile-time measurement")
@@ -209,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
+    _check_arguments(parser, args)
     result = run(args.steps, args.repeats, not args.no_compile, args.threads)
     if args.gas:
         result["gas"] = gas_cost_split(args.steps, args.repeats)

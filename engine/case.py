@@ -203,8 +203,9 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Steady only when the grain mass entering and the mass leaving the tube during the window "
         "agree within this factor (a tube still filling or draining does not); nothing in and "
         "nothing out (a blocked tube) agrees.", low=1.0, high=1e6),
-    Key("run.checkpoint_interval", 600.0, "s (wall)",
-        "Wall-clock seconds between checkpoints of a running case (0: never).", low=0.0, high=1e6),
+    Key("run.checkpoint_interval", 120.0, "s (wall)",
+        "Wall-clock seconds between checkpoints of a running case (0: none periodic; Ctrl-C and "
+        "SIGTERM still write one).", low=0.0, high=1e6),
     Key("output.interval", 0.01, "s", "Simulated time between output frames (time series and slices).",
         low=0.0, low_open=True, high=100.0),
     Key("output.slice_width", 0.0035, "m", "Width of the slices along the tube for slice fields.",
@@ -258,7 +259,18 @@ def parse_override(text: str) -> tuple[str, Any]:
     if "=" not in text:
         raise CaseError(f"override {text!r} must look like key.path=value")
     name, raw = text.split("=", 1)
-    return name.strip(), yaml.safe_load(raw)
+    try:
+        return name.strip(), yaml.safe_load(raw)
+    except yaml.YAMLError as err:
+        raise CaseError(f"override {text!r}: the value is not valid YAML: {_yaml_problem(err)}") from None
+
+
+def _yaml_problem(err: yaml.YAMLError) -> str:
+    """One line: what the YAML parser found wrong, and where (line, column from 1)."""
+    mark = getattr(err, "problem_mark", None)
+    problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+    return f"{where}{problem}"
 
 
 def _unknown(name: str) -> CaseError:
@@ -283,9 +295,16 @@ class Case:
     def from_yaml(cls, path: str | Path, overrides: Iterable[str] = ()) -> "Case":
         """Load a case YAML file, then apply 'key=value' overrides."""
         path = Path(path)
-        if not path.is_file():
+        if not path.exists():
             raise CaseError(f"case file {str(path)!r} does not exist")
-        nested = yaml.safe_load(path.read_text()) or {}
+        if not path.is_file():
+            raise CaseError(f"case file {str(path)!r} is not a file")
+        try:
+            nested = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError as err:
+            raise CaseError(f"case file {str(path)!r} is not valid YAML: {_yaml_problem(err)}") from None
+        except (OSError, UnicodeDecodeError) as err:
+            raise CaseError(f"case file {str(path)!r} cannot be read: {err}") from None
         if not isinstance(nested, Mapping):
             raise CaseError(f"case file {str(path)!r} must hold a mapping of sections")
         return cls(nested).with_overrides(overrides)
@@ -332,6 +351,9 @@ class Case:
             raise CaseError(f"tube.length = {self['tube.length']:g} m must be >= 4 particles.diameter")
         if self["output.snapshot_x_max"] <= self["output.snapshot_x_min"]:
             raise CaseError("output.snapshot_x_max must be > output.snapshot_x_min")
+        if self["run.duration"] < self["output.interval"] * (1 - 1e-9):
+            raise CaseError(f"run.duration = {self['run.duration']:g} s must be >= output.interval = "
+                            f"{self['output.interval']:g} s (a run writes one frame per output.interval)")
         ratio = self["output.snapshot_interval"] / self["output.interval"]
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise CaseError(f"output.snapshot_interval = {self['output.snapshot_interval']:g} s must be a "

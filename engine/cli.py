@@ -3,9 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import os
+import shlex
+import signal
 import sys
 
+from . import __version__
 from .case import KEYS, Case, CaseError, keys_markdown
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with usage errors as one line on stderr (exit 2), like every other bad input."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
 
 
 def _keys(args: argparse.Namespace) -> int:
@@ -46,7 +57,7 @@ def _run(args: argparse.Namespace) -> int:
     """Run one case to a case file; numerical failures exit 1 with a one-line reason."""
     import logging
 
-    from .run import InitialStateError, RunError, run_case
+    from .run import InitialStateError, OutputPathError, RunError, RunInterrupted, run_case
     from .simulation import check_threads
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
@@ -62,9 +73,15 @@ def _run(args: argparse.Namespace) -> int:
     except InitialStateError as err:  # refused before any step
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
+    except OutputPathError as err:  # refused before any step
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 2
     except RunError as err:
         print(f"plugsim: run failed: {err}", file=sys.stderr)
         return 1
+    except RunInterrupted as err:
+        print(f"plugsim: {_interrupted(err, args.argv)}", file=sys.stderr)
+        return 128 + err.signum
     return 0
 
 
@@ -94,13 +111,36 @@ def _animate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _interrupted(err, argv: list[str]) -> str:
+    """One line: where a run was stopped and how to resume it."""
+    command = shlex.join(["plugsim", *argv])
+    where = f" at t = {err.time:.3f} s" if err.time is not None else ""
+    if err.checkpoint is None:
+        return f"interrupted by {err} before any new frame, nothing saved; start again with: {command}"
+    return f"interrupted by {err}{where}, checkpoint {err.checkpoint}; resume with the same command: {command}"
+
+
 def _bench(args: argparse.Namespace, rest: list[str]) -> int:
     from . import bench
     return bench.main(rest)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="plugsim", description="Dense-phase pneumatic conveying simulator")
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        print("plugsim: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
+    except BrokenPipeError:  # e.g. `plugsim keys | head`: the reader has gone, stop quietly
+        # stdout is still open: point it at /dev/null so that its flush at exit does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
+
+
+def _main(argv: list[str]) -> int:
+    parser = OneLineParser(prog="plugsim", description="Dense-phase pneumatic conveying simulator")
+    parser.add_argument("--version", action="version", version=f"plugsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("keys", help="list every case key with unit, default and allowed range")
     p.add_argument("--markdown", action="store_true", help="print the docs/case-keys.md table")
@@ -146,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         return _bench(args, rest)
     if rest:
         parser.error(f"unrecognized arguments: {' '.join(rest)}")
+    args.argv = argv
     try:
         return args.func(args)
     except CaseError as err:

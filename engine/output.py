@@ -102,6 +102,31 @@ class Recorder:
             ds = ds.merge(self._tube_snapshot_dataset())
         return ds
 
+    @classmethod
+    def from_dataset(cls, ds: xr.Dataset, case, sim) -> "Recorder":
+        """The recorder that wrote the case file `ds` (loaded), holding the same frames bit for bit,
+        to continue recording into; `sim` is the simulation restored with it."""
+        rec = cls(case)
+        rec._last_impulse = (sim.time, sim.piston_impulse)
+        rec.times = [float(t) for t in ds.time.values]
+        for name in SERIES:
+            rec.series[name] = list(ds[name].values)
+        for name in FIELDS:
+            rec.fields[name] = list(ds[name].values.astype(np.float32))
+        if case["output.snapshots"]:
+            ends = np.cumsum(ds.snapshot_count.values)
+            pos, vel, ids = (ds[name].values for name in
+                             ("snapshot_position", "snapshot_velocity", "snapshot_grain_id"))
+            rec.snapshots = [(float(t), pos[end - n:end], vel[end - n:end], ids[end - n:end])
+                             for t, n, end in zip(ds.snapshot_time.values, ds.snapshot_count.values, ends)]
+        if rec._frames_per_tube_snapshot:
+            ends = np.cumsum(ds.tube_snapshot_count.values)
+            arrays = [ds[f"tube_snapshot_{name}"].values
+                      for name in ("position", "velocity", "angular_velocity", "grain_id")]
+            rec.tube_snapshots = [(float(t), *(a[end - n:end] for a in arrays)) for t, n, end in
+                                  zip(ds.tube_snapshot_time.values, ds.tube_snapshot_count.values, ends)]
+        return rec
+
     @staticmethod
     def final_state(sim) -> xr.Dataset:
         """Every grain in the tube at the end of the run (float64), the start of a warm run."""

@@ -7,11 +7,16 @@ import logging
 import math
 import os
 import pickle
+import signal
 import sys
+import tempfile
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
+import yaml
 
 from .case import Case
 from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
@@ -31,12 +36,63 @@ class InitialStateError(ValueError):
     """A warm-start file that cannot start this case (missing state, other grains or tube)."""
 
 
+class OutputPathError(ValueError):
+    """An output path that cannot receive the case file (a directory, a missing or read-only folder)."""
+
+
+class RunInterrupted(BaseException):  # not swallowed by broad `except Exception` (numba compile)
+    """SIGINT or SIGTERM stopped a run; `checkpoint` is the file it resumes from (None: nothing saved)."""
+
+    def __init__(self, signum: int, time: float | None, checkpoint: Path | None):
+        super().__init__(signal.Signals(signum).name)
+        self.signum, self.time, self.checkpoint = signum, time, checkpoint
+
+
 def checkpoint_path(out: Path) -> Path:
     return out.with_name(out.name + ".ckpt")
 
 
+def extends_only(key: str) -> bool:
+    """Whether a case key only sets how long a run goes or when it saves (every run.* key but the
+    seed): the trajectory up to any time does not depend on it, so a run can be continued with
+    another value."""
+    return key.startswith("run.") and key != "run.seed"
+
+
 def case_digest(case: Case) -> str:
-    return hashlib.sha256(case.to_yaml().encode()).hexdigest()[:16]
+    """Digest of what determines a run's trajectory: the keys but those that only extend it, and
+    the engine version."""
+    from . import __version__
+    values = {key: value for key, value in case.items() if not extends_only(key)}
+    text = yaml.safe_dump(values, sort_keys=True) + __version__
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def check_output_path(out: Path) -> None:
+    """Raise OutputPathError unless a case file can be written at `out` (tried with a probe file)."""
+    if out.is_dir():
+        raise OutputPathError(f"output {out} is a directory: give a file name, e.g. {out / 'case.nc'}")
+    folder = out.parent
+    if not folder.is_dir():
+        raise OutputPathError(f"output {out}: the directory {folder} does not exist")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=f".{out.name}.probe-", dir=folder)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as err:
+        raise OutputPathError(f"output {out}: cannot write in {folder} ({err.strerror})") from None
+
+
+def kernels_compiled() -> bool:
+    """Whether numba's on-disk cache holds the main kernels for their current source (else the
+    first step compiles them, for up to two minutes)."""
+    from .kernels import contacts, slices, stepper
+    try:
+        return all(kernel._cache._cache_file._load_index()
+                   for kernel in (stepper.advance, stepper.rebuild, contacts.evaluate_contacts,
+                                  slices.accumulate_slices))
+    except Exception:  # numba internals changed: do not guess, announce nothing
+        return True
 
 
 def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
@@ -111,9 +167,13 @@ class Progress:
 
 def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str) -> None:
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as handle:
-        pickle.dump({"digest": digest, "sim": sim, "recorder": recorder}, handle, protocol=5)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as handle:
+            pickle.dump({"digest": digest, "sim": sim, "recorder": recorder}, handle, protocol=5)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 def _load_checkpoint(path: Path, digest: str):
@@ -127,18 +187,79 @@ def _load_checkpoint(path: Path, digest: str):
     return state["sim"], state["recorder"]
 
 
+def restart_state(sim: Simulation, digest: str) -> xr.Dataset:
+    """The engine's full state (the pickled Simulation) as a byte variable of the case file, from
+    which a longer run continues bit for bit."""
+    data = np.frombuffer(pickle.dumps(sim, protocol=5), dtype=np.uint8)
+    return xr.Dataset({"restart_state": ("restart_byte", data, {
+        "long_name": "full engine state at the end of the run (pickled), to continue it to a longer "
+                     "run.duration", "units": "1", "digest": digest})})
+
+
+def _load_finished(out: Path, case: Case, digest: str, frames: int):
+    """(sim, recorder) at the end of the finished case file `out` when it can be continued to
+    `frames` output frames of `case`: same digest, stopped for lack of time, fewer frames."""
+    if not out.is_file():
+        return None
+    try:
+        with xr.open_dataset(out) as ds:
+            if ("restart_state" not in ds or ds.restart_state.attrs.get("digest") != digest
+                    or ds.attrs.get("stop_reason") not in ("duration", "max_duration")
+                    or ds.sizes["time"] - 1 >= frames):
+                return None
+            sim = pickle.loads(ds.restart_state.values.tobytes())
+            return sim, Recorder.from_dataset(ds.load(), case, sim)
+    except Exception as err:  # unreadable, or a state the code cannot load: run from the start
+        log.warning("not continuing %s (%s): running from the start", out, str(err).splitlines()[0])
+        return None
+
+
+class _Signals:
+    """SIGINT and SIGTERM while a run is inside it: before `armed` (nothing new to save) they stop
+    it at once; afterwards the first one is noted in `received`, for the loop to save a checkpoint at
+    the next frame boundary, and a second one stops it at once."""
+
+    def __init__(self):
+        self.armed, self.received, self.previous = False, None, {}
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                self.previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        if not self.armed or self.received is not None:
+            raise RunInterrupted(signum, None, None)
+        self.received = signum
+
+    def __exit__(self, *exc):
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)
+        return False
+
+
 def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions, velocities, angular velocities of the grains at the end of case file `path`, for
     a warm start of `case`; grains beyond case's tube length are left out. Raises
     InitialStateError (naming the file and the mismatch) when the grains or the tube
-    cross-section differ."""
-    import xarray as xr
-
-    with xr.open_dataset(path) as ds:
+    cross-section differ, or the file is not a case file."""
+    path = Path(path)
+    if not path.exists():
+        raise InitialStateError(f"initial state {path}: no such file")
+    if not path.is_file():
+        raise InitialStateError(f"initial state {path}: not a file (a case file .nc is needed)")
+    try:
+        ds = xr.open_dataset(path, engine="netcdf4")
+    except (OSError, ValueError):
+        raise InitialStateError(f"initial state {path}: not a NetCDF case file (as plugsim run writes)") from None
+    with ds:
         if "final_position" not in ds:
             raise InitialStateError(f"initial state {path}: no final_position (written by plugsim >= 0.2)")
         for attr, key in (("tube_diameter", "tube.diameter"), ("particle_diameter", "particles.diameter"),
                           ("particle_density", "particles.density")):
+            if attr not in ds.attrs:
+                raise InitialStateError(f"initial state {path}: no {attr} attribute (not a plugsim case file)")
             if not math.isclose(float(ds.attrs[attr]), case[key], rel_tol=1e-9):
                 raise InitialStateError(f"initial state {path}: {key} = {float(ds.attrs[attr]):g} there, "
                                  f"{case[key]:g} here; a warm start needs the same grains and tube cross-section")
@@ -151,17 +272,38 @@ def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.nda
 def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None,
              threads: int = 1) -> Path:
     """Run `case` from an empty tube, or from the grains at the end of the case file
-    `initial_state` (warm start), or from its checkpoint, and write the case file `out`.
-    `threads`: numba threads for the contact forces (a resumed run keeps its checkpoint's)."""
-    out = Path(out)
+    `initial_state` (warm start), or from its checkpoint, or continue the finished case file `out`
+    to a longer run.duration, and write the case file `out`. `threads`: numba threads for the
+    contact forces (a resumed run keeps its checkpoint's). SIGINT and SIGTERM save a checkpoint at
+    the next frame boundary and raise RunInterrupted."""
+    with _Signals() as signals:
+        return _run_case(case, Path(out), quiet, initial_state, threads, signals)
+
+
+def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | None, threads: int,
+              signals: _Signals) -> Path:
     check_threads(threads)
+    check_output_path(out)
     start = read_initial_state(initial_state, case) if initial_state else None
     digest = case_digest(case) + (f":{Path(initial_state).resolve()}" if initial_state else "")
     ckpt = checkpoint_path(out)
+    interval, duration = case["output.interval"], case["run.duration"]
+    frames = int(round(duration / interval))
     resumed = _load_checkpoint(ckpt, digest)
+    if resumed and len(resumed[1].times) - 1 > frames:
+        log.warning("ignoring checkpoint %s: it is past run.duration = %g s", ckpt, duration)
+        resumed = None
+    if resumed:
+        log.info("resuming %s from t = %.3f s", out, resumed[0].time)
+    else:
+        resumed = _load_finished(out, case, digest, frames)
+        if resumed:
+            log.info("continuing %s from its end, t = %.3f s, to %g s", out, resumed[0].time, duration)
+    if not kernels_compiled():
+        log.info("compiling kernels (first run only, up to two minutes)")
     if resumed:
         sim, recorder = resumed
-        log.info("resuming %s from t = %.3f s", out, sim.time)
+        sim.case = recorder.case = case  # differs at most in keys that only extend a run
     else:
         sim, recorder = Simulation(case, threads), Recorder(case)
         if start is not None:
@@ -174,24 +316,27 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
     log.info("case %s: dt = %.3g s, %d gas nodes, feed %.3g kg/h, until %s", out.name, sim.dt,
              case["gas.nodes_x"] * case["gas.nodes_y"] * case["gas.nodes_z"] if case["gas.enabled"] else 0,
              case["feed.mass_flow_kg_h"], "steady" if case["run.until_steady"] else f"{case['run.duration']} s")
-    interval, duration = case["output.interval"], case["run.duration"]
-    frames = int(round(duration / interval))
     progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
     last_save = started = time.monotonic()
     cpu_started = time.process_time()
     reason, window = "duration", None
+    if case["run.until_steady"] and resumed:  # a longer run continued: steady already?
+        window = steady_window(recorder, case)
     try:
-        for _ in range(len(recorder.times) - 1, frames):
+        for _ in range(len(recorder.times) - 1, frames if window is None else 0):
             sim.advance(interval)
             recorder.sample(sim)
             _check_health(sim)
             sim.reset_max_overlap()  # the frame's largest overlap is recorded and checked
             progress.update(sim, interval)
+            signals.armed = True
             if case["run.until_steady"]:
                 window = steady_window(recorder, case)
                 if window:
-                    reason = "steady"
                     break
+            if signals.received is not None:
+                _save_checkpoint(ckpt, sim, recorder, digest)
+                raise RunInterrupted(signals.received, sim.time, ckpt)
             if case["run.checkpoint_interval"] > 0 and time.monotonic() - last_save > case["run.checkpoint_interval"]:
                 _save_checkpoint(ckpt, sim, recorder, digest)
                 last_save = time.monotonic()
@@ -201,9 +346,15 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
         log.warning("case %s: %s; the run ends here", out.name, err)
     except SimulationError as err:
         raise RunError(str(err)) from err
+    except RunInterrupted as err:
+        if err.checkpoint is None and ckpt.exists():
+            err.checkpoint = ckpt  # stopped before a new frame: the older checkpoint still resumes
+        raise
     finally:
         progress.close()
-    if case["run.until_steady"] and window is None and reason != "blocked":
+    if window:
+        reason = "steady"
+    elif case["run.until_steady"] and reason != "blocked":
         reason = "max_duration"
     wall = time.monotonic() - started
     extra = {"stop_reason": reason, "time_step": sim.dt,
@@ -224,7 +375,8 @@ def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str
              "blocked_time": sim.time if reason == "blocked" else math.nan,
              "steady_start": window[0] if window else math.nan,
              "steady_end": window[1] if window else math.nan}
-    write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim)), out)
+    write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim))
+                     .merge(restart_state(sim, digest)), out)
     if ckpt.exists():
         ckpt.unlink()
     log.info("wrote %s (%s, t = %.3f s)", out, reason, sim.time)

@@ -1,0 +1,213 @@
+"""The `plugsim` command line: bad input (exit 2, one line, before any work), interrupts and resume,
+continuing a run to a longer duration, --version, the compile notice."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import engine
+from engine import Case
+from engine.cli import main
+from engine.run import case_digest, checkpoint_path, kernels_compiled, run_case
+
+ROOT = Path(__file__).resolve().parents[2]
+CASE = ROOT / "config" / "cases" / "horizontal.yaml"
+# grains only in a 2.1 cm tube: ~0.3 s of CPU per 0.1 s simulated once it is full
+TINY = ["gas.enabled=false", "tube.length=0.021"]
+
+
+def sets(overrides):
+    return [arg for o in overrides for arg in ("--set", o)]
+
+
+def plugsim(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "engine.cli", *args], capture_output=True, text=True, **kw)
+
+
+@pytest.fixture
+def refused(tmp_path, capsys, monkeypatch):
+    """Run `plugsim ARGS` in tmp_path; assert exit 2, one line on stderr, nothing written; return it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "broken.yaml").write_text("tube:\n  length: [0.5\n")
+    (tmp_path / "notes.txt").write_text("not a case file\n")
+
+    def run(*args):
+        before = set(tmp_path.iterdir())
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exit_:  # argparse's own errors
+            code = exit_.code
+        assert code == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1, lines
+        assert set(tmp_path.iterdir()) == before, "bad input must not leave files"
+        return lines[0]
+    return run
+
+
+@pytest.mark.parametrize("args, message", [
+    (["run", "broken.yaml", "--out", "x.nc"],
+     "case file 'broken.yaml' is not valid YAML: line 3, column 1: expected ',' or ']'"),
+    (["check", "broken.yaml"], "case file 'broken.yaml' is not valid YAML: line 3"),
+    (["check", "."], "case file '.' is not a file"),
+    (["check", CASE, "--set", "gas.viscosity=[1,"], "override 'gas.viscosity=[1,': the value is not valid YAML"),
+    (["run", CASE, "--out", "x.nc", "--set", "run.duration=0.005"],
+     "run.duration = 0.005 s must be >= output.interval = 0.01 s"),
+    (["run", CASE, "--out", "x.nc", "--initial-state", "missing.nc"], "initial state missing.nc: no such file"),
+    (["run", CASE, "--out", "x.nc", "--initial-state", "."], "initial state .: not a file"),
+    (["run", CASE, "--out", "x.nc", "--initial-state", "notes.txt"],
+     "initial state notes.txt: not a NetCDF case file"),
+    (["run", CASE, "--out", "x.nc", "--initial-state", "broken.yaml"],
+     "initial state broken.yaml: not a NetCDF case file"),
+    (["run", CASE, "--out", "."], "output . is a directory"),
+    (["run", CASE, "--out", "no/such/dir/x.nc"], "output no/such/dir/x.nc: the directory no/such/dir does not exist"),
+    # /proc refuses new files even to root, who may write in any ordinary directory
+    (["run", CASE, "--out", "/proc/x.nc"], "output /proc/x.nc: cannot write in /proc"),
+    (["run", CASE, "--out", "x.nc", "--threads", "0"], "--threads: threads = 0: allowed 1 to"),
+    (["run", CASE], "plugsim run: error: the following arguments are required: --out"),
+    (["bench", "--steps", "0"], "plugsim bench: error: --steps = 0: allowed 1 or more"),
+    (["bench", "--repeats", "-1"], "plugsim bench: error: --repeats = -1: allowed 1 or more"),
+    (["bench", "--threads", "999"], "plugsim bench: error: --threads: threads = 999"),
+    (["bench", "--write-lammps", "/proc/lammps"], "plugsim bench: error: --write-lammps /proc/lammps: cannot create"),
+])
+def test_bad_input_exits_2_with_one_line_before_any_work(refused, args, message):
+    assert message in refused(*args)
+
+
+def test_a_directory_as_output_is_refused_before_the_run(tmp_path):
+    """Checked up front: a run that would take minutes is refused in the time of the start-up."""
+    started = time.monotonic()
+    res = plugsim("run", str(CASE), "--out", str(tmp_path), "--set", "run.duration=1000")
+    assert res.returncode == 2 and res.stderr.strip().splitlines() == [
+        f"plugsim: error: output {tmp_path} is a directory: give a file name, e.g. {tmp_path / 'case.nc'}"]
+    assert time.monotonic() - started < 60  # 1000 s simulated would take hours
+
+
+def test_keys_into_a_closed_pipe_ends_quietly():
+    """`plugsim keys | head`: the reader goes away; no BrokenPipeError traceback, the status of a
+    process ended by SIGPIPE (141) as other Unix tools give."""
+    proc = subprocess.Popen([sys.executable, "-m", "engine.cli", "keys"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # before it writes: its first write meets a pipe with no reader
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141 and err == ""
+
+
+def test_version_is_the_package_version_everywhere(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out == f"plugsim {engine.__version__}\n"
+    # pyproject.toml reads it from engine.__version__ (no second copy of the number)
+    import tomllib
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "engine.__version__"}
+    from setuptools.config.pyprojecttoml import read_configuration
+    with pytest.warns(Warning):  # setuptools calls its [tool.setuptools] support beta
+        resolved = read_configuration(ROOT / "pyproject.toml", expand=True)["project"]["version"]
+    assert resolved == engine.__version__
+
+
+def test_checkpoint_digest_ignores_only_the_keys_that_extend_a_run():
+    case = Case.from_yaml(CASE)
+    same = case.with_overrides(["run.duration=60", "run.until_steady=true", "run.steady_rel_error=0.01",
+                                "run.checkpoint_interval=5"])
+    assert case_digest(same) == case_digest(case)
+    for changed in ("run.seed=1", "particles.friction=0.3", "output.slice_width=0.007"):
+        assert case_digest(case.with_overrides([changed])) != case_digest(case), changed
+
+
+def test_a_finished_run_continues_to_a_longer_duration_bit_for_bit(tmp_path):
+    """`plugsim run CASE --out X.nc --set run.duration=LONGER` on a finished X.nc continues from its
+    stored state: the same file as one run made at once to the longer duration."""
+    snapshots = ["output.snapshots=true", "output.snapshot_x_min=0", "output.snapshot_x_max=0.015",
+                 "output.snapshot_interval=0.05", "output.tube_snapshot_interval=0.05"]
+    once, continued = tmp_path / "once.nc", tmp_path / "continued.nc"
+    run_case(Case.from_yaml(CASE, TINY + snapshots + ["run.duration=0.3"]), once)
+    run_case(Case.from_yaml(CASE, TINY + snapshots + ["run.duration=0.15"]), continued)
+    res = plugsim("run", str(CASE), "--out", str(continued), *sets(TINY + snapshots + ["run.duration=0.3"]))
+    assert res.returncode == 0, res.stderr
+    assert f"continuing {continued} from its end, t = 0.150 s, to 0.3 s" in res.stderr
+    with xr.open_dataset(once) as a, xr.open_dataset(continued) as b:
+        assert a.attrs["resumed"] == 0 and b.attrs["resumed"] == 1
+        assert b.attrs["config_yaml"] == a.attrs["config_yaml"] and b.sizes["time"] == 31
+        for name in a.data_vars:  # restart_state included: the engine's state at the end
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+    # another configuration, or the same duration again, starts over (the result is not mixed)
+    res = plugsim("run", str(CASE), "--out", str(continued), *sets(TINY + snapshots + ["run.duration=0.3",
+                                                                                         "run.seed=1"]))
+    assert res.returncode == 0 and "continuing" not in res.stderr
+    with xr.open_dataset(continued) as b:
+        assert b.attrs["resumed"] == 0 and b.attrs["seed"] == 1
+
+
+def _wait_for(proc, text, timeout=120):
+    """Read proc's stderr lines until one contains `text`; return the lines read."""
+    lines, deadline = [], time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            return lines
+    raise AssertionError(f"{text!r} not seen in {lines}")
+
+
+def test_sigterm_and_sigint_save_a_checkpoint_and_resume_to_the_uninterrupted_result(tmp_path):
+    """SIGTERM, then SIGINT of the resumed run: each exits (143, 130) with one line naming the
+    checkpoint and the command, and the run resumed twice equals the uninterrupted one bit for bit.
+    The first run asks for 2.5 s, the resumed ones for 3 s: a checkpoint continues to a longer
+    duration. No periodic checkpoint (default interval, 120 s): the checkpoints are the interrupts'."""
+    out = tmp_path / "x.nc"
+    command = {d: ["run", str(CASE), "--out", str(out), *sets(TINY + [f"run.duration={d}"])] for d in ("2.5", "3.0")}
+    reference = tmp_path / "reference.nc"
+    run_case(Case.from_yaml(CASE, TINY + ["run.duration=3.0"]), reference)
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    for signum, args in ((signal.SIGTERM, command["2.5"]), (signal.SIGINT, command["3.0"])):
+        proc = subprocess.Popen([sys.executable, "-m", "engine.cli", *args], stderr=subprocess.PIPE, text=True,
+                                env=env)
+        started = _wait_for(proc, "case x.nc: dt")  # the last line before the first frame
+        assert ("resuming" in started[0]) == (signum == signal.SIGINT), started
+        time.sleep(1.0)  # some frames; seconds of CPU time remain (2 s simulated cost ~3 s)
+        proc.send_signal(signum)
+        rest = proc.stderr.read().strip().splitlines()
+        assert proc.wait(timeout=60) == 128 + signum, rest
+        assert len(rest) == 1 and rest[0].startswith(f"plugsim: interrupted by {signum.name} at t = "), rest
+        assert rest[0].endswith(f"checkpoint {checkpoint_path(out)}; resume with the same command: plugsim "
+                                + " ".join(args)), rest
+        assert checkpoint_path(out).exists() and not out.exists()
+    res = plugsim(*command["3.0"], env=env)
+    assert res.returncode == 0, res.stderr
+    assert "compiling kernels" not in res.stderr  # the cache is warm by now
+    assert not checkpoint_path(out).exists()
+    with xr.open_dataset(reference) as a, xr.open_dataset(out) as b:
+        assert b.attrs["resumed"] == 1
+        for name in a.data_vars:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+def test_a_cold_kernel_cache_is_announced_and_an_interrupt_while_compiling_ends_at_once(tmp_path):
+    """An empty numba cache (NUMBA_CACHE_DIR): the progress output says that the kernels compile;
+    Ctrl-C during the compile stops at once with one line (no frame yet, nothing to save)."""
+    run_case(Case.from_yaml(CASE, TINY + ["run.duration=0.01"]), tmp_path / "warm.nc")
+    assert kernels_compiled()  # the cache of the kernels' source folder now holds them
+    out = tmp_path / "x.nc"
+    proc = subprocess.Popen([sys.executable, "-m", "engine.cli", "run", str(CASE), "--out", str(out)],
+                            stderr=subprocess.PIPE, text=True,
+                            env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache")))
+    _wait_for(proc, "plugsim: compiling kernels (first run only, up to two minutes)")
+    time.sleep(2.0)  # inside the compile (it takes a minute or more)
+    proc.send_signal(signal.SIGINT)
+    rest = proc.stderr.read().strip().splitlines()
+    assert proc.wait(timeout=60) == 130
+    assert len(rest) == 1 and rest[0].startswith("plugsim: interrupted by SIGINT before any new frame, "
+                                                 "nothing saved; start again with: plugsim run "), rest
+    assert not out.exists() and not checkpoint_path(out).exists()
