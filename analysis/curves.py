@@ -1,7 +1,7 @@
 """Characteristic curves and sweep reductions (H3, H5-H7, H21, V4, V7, V8).
 
-Per case: steady-state pressure drop per tube length (Pa/m; plots show hPa/m) with a batch-means
-standard error, and the transport regime from the slug statistics. Over a sweep: a tidy table,
+Per case: steady-state pressure drop per tube length (Pa/m; plots show hPa/m) with its standard
+error (analysis.timeseries.mean_error), and the transport regime from the slug statistics. Over a sweep: a tidy table,
 one row per case, against the swept parameters.
 """
 
@@ -17,45 +17,11 @@ import xarray as xr
 from .casefile import config, geometry, open_case, require, seconds, slice_faces
 from .slugs import THRESHOLD, detect
 from .statistics import slug_statistics
+from .timeseries import MIN_CORRELATION_TIMES, mean_error, mser_start
 
-N_BATCHES = 10
 BULK_FILL = 0.9  # tube "completely filled": slugs cover >= 90 % of its length (time mean)
 DILUTE_SLUG_FRACTION = 0.5  # dilute: slugs no longer hold the majority of the grains (H §3.1)
 ALWAYS = ("gas.superficial_velocity", "feed.mass_flow_kg_h", "tube.inclination_deg")
-
-
-def batch_means(values, n_batches: int = N_BATCHES) -> tuple[float, float]:
-    """Mean and its batch-means standard error std(batch means, ddof=1) / sqrt(n_batches).
-
-    The series is cut into n_batches equal consecutive batches (the first len % n_batches samples
-    are dropped); correlated samples inside a batch then do not shrink the error.
-    """
-    v = np.asarray(values, dtype=np.float64)
-    size = v.size // n_batches
-    if n_batches < 2 or size < 1:
-        raise ValueError(f"need at least {max(n_batches, 2)} samples for {n_batches} batches")
-    means = v[v.size - size * n_batches:].reshape(n_batches, size).mean(axis=1)
-    return float(means.mean()), float(means.std(ddof=1) / np.sqrt(n_batches))
-
-
-def mser_start(values, batch: int = 5) -> int:
-    """Index where the statistically steady part starts (MSER-5 truncation, White 1997).
-
-    Over batches of `batch` samples, choose the truncation k (at most half the series) minimising
-    the squared standard error estimate var(rest) / len(rest) of the remaining batch means.
-    """
-    v = np.asarray(values, dtype=np.float64)
-    n = v.size // batch
-    if n < 4:
-        return 0
-    means = v[: n * batch].reshape(n, batch).mean(axis=1)
-    rest = np.arange(n, 0, -1)  # batches kept for truncation k = 0 .. n-1
-    s1 = np.cumsum(means[::-1])[::-1]
-    s2 = np.cumsum((means**2)[::-1])[::-1]
-    var = s2 / rest - (s1 / rest) ** 2
-    score = var / rest
-    k = int(np.argmin(score[: n // 2 + 1]))
-    return k * batch
 
 
 FILLED_FRACTION = 0.95  # hold-up fraction of its final level at which the tube counts as filled
@@ -72,27 +38,48 @@ def filled_index(ds: xr.Dataset, fraction: float = FILLED_FRACTION) -> int:
     return int(np.argmax(n >= fraction * level)) if level > 0 else 0
 
 
-def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None,
-                         n_batches: int = N_BATCHES) -> dict:
-    """Steady-state pressure drop per tube length (Pa/m) with its batch-means standard error.
+def averaging_window(ds: xr.Dataset) -> tuple[int, int, str]:
+    """(first, last) frame of the steady window and where it comes from: "run" (the window of a
+    run that stopped steady, attrs steady_start/steady_end), else "fill+mser" (once the tube has
+    filled, filled_index: the papers average "after filling", and MSER-5 finds the remaining
+    transient over, to the end of the run)."""
+    t = seconds(ds["time"].values)
+    start, end = (float(ds.attrs.get(k, np.nan)) for k in ("steady_start", "steady_end"))
+    if ds.attrs.get("stop_reason") == "steady" and np.isfinite(start) and np.isfinite(end):
+        return int(np.searchsorted(t, start)), int(np.searchsorted(t, end, side="right")) - 1, "run"
+    dp = np.asarray(ds["pressure_drop"].values, dtype=np.float64)
+    filled = filled_index(ds)
+    return filled + mser_start(dp[filled:]), t.size - 1, "fill+mser"
 
-    The window starts at t_start (s) or, by default, once the tube has filled (filled_index: the
-    papers average "after filling") and MSER-5 finds the remaining transient over; it ends with
-    the run. Returns pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end
-    (s), n_batches.
+
+def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None) -> dict:
+    """Steady-state pressure drop per tube length (Pa/m) and its standard error (mean_error).
+
+    The window runs from t_start (s) to the end of the run, or by default is averaging_window's: the
+    same window as the run's steady stop gives the same number. Returns pressure_drop,
+    pressure_drop_sem (Pa/m; NaN when the window covers fewer than the case's
+    run.steady_min_correlation_times), pressure_drop_correlation_time (s), pressure_drop_converged,
+    t_start, t_end (s) and window ("given", "run" or "fill+mser").
     """
     require(ds, "pressure_drop")
     geo = geometry(ds)
     t = seconds(ds["time"].values)
-    dp = np.asarray(ds["pressure_drop"].values, dtype=np.float64) / geo.tube_length
     if t_start is None:
-        filled = filled_index(ds)
-        first = filled + mser_start(dp[filled:])
+        first, last, source = averaging_window(ds)
     else:
-        first = int(np.searchsorted(t, t_start))
-    mean, sem = batch_means(dp[first:], n_batches)
-    return {"pressure_drop": mean, "pressure_drop_sem": sem, "t_start": float(t[first]),
-            "t_end": float(t[-1]), "n_batches": n_batches}
+        first, last, source = int(np.searchsorted(t, t_start)), t.size - 1, "given"
+    keys = config(ds) if "config_yaml" in ds.attrs else {}
+    times = float(keys.get("run.steady_min_correlation_times", MIN_CORRELATION_TIMES))
+    dp = np.asarray(ds["pressure_drop"].values[first:last + 1], dtype=np.float64) / geo.tube_length
+    est = mean_error(dp, sampling_interval(t), times)
+    return {"pressure_drop": est.mean, "pressure_drop_sem": est.error,
+            "pressure_drop_correlation_time": est.tau_s, "pressure_drop_converged": est.converged,
+            "t_start": float(t[first]), "t_end": float(t[last]), "window": source}
+
+
+def sampling_interval(t) -> float:
+    """Interval (s) of evenly sampled times; 1 for fewer than two."""
+    return float(np.median(np.diff(t))) if len(t) > 1 else 1.0
 
 
 def slug_fractions(ds: xr.Dataset, slugs: pd.DataFrame, t_start: float | None = None) -> dict:
@@ -125,25 +112,26 @@ def regime(dense_fraction: float, slug_fraction: float, vertical: bool = False,
 
 
 def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | None = None,
-                 n_batches: int = N_BATCHES, position: float | None = None,
+                 position: float | None = None,
                  slugs: pd.DataFrame | None = None) -> dict:
     """One case reduced to scalars: configuration (dotted keys) and results.
 
-    Results: pressure_drop, pressure_drop_sem (Pa/m), t_start, t_end (s, the steady window),
+    Results: steady_pressure_drop's (pressure drop and error, window t_start, t_end),
     dense_fraction, slug_fraction, regime, slug_rate (1/s) and mean slug_velocity (m/s) and
-    length (m) at `position` (default mid-tube) with their standard errors (_sem), n_particles (time mean in the window),
+    length (m) at `position` (default mid-tube) with their standard errors (_sem), n_particles
+    (time mean in the window) and n_particles_sem (mean_error),
     mass_flow_out (kg/s, slope of mass_out over the window).
     """
     geo = geometry(ds)
     row = dict(config(ds)) if "config_yaml" in ds.attrs else {}
-    steady = steady_pressure_drop(ds, t_start, n_batches)
+    steady = steady_pressure_drop(ds, t_start)
     t0 = steady["t_start"]
     slugs = detect(ds, threshold) if slugs is None else slugs
     fractions = slug_fractions(ds, slugs, t0)
     position = geo.tube_length / 2 if position is None else position
     stats = slug_statistics(slugs, [position], t_start=t0) if len(slugs) else None
     t = seconds(ds["time"].values)
-    window = t >= t0
+    window = (t >= t0) & (t <= steady["t_end"])
     row.update(steady)
     row.update(fractions)
     row["regime"] = regime(fractions["dense_fraction"], fractions["slug_fraction"], geo.vertical)
@@ -153,7 +141,9 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     row["slug_velocity_sem"] = float(stats["slug_velocity_sem"].iloc[0]) if stats is not None else np.nan
     row["slug_length_sem"] = float(stats["length_sem"].iloc[0]) if stats is not None else np.nan
     if "n_particles" in ds:
-        row["n_particles"] = float(np.mean(ds["n_particles"].values[window]))
+        grains = mean_error(ds["n_particles"].values[window], sampling_interval(t),
+                            row.get("run.steady_min_correlation_times", MIN_CORRELATION_TIMES))
+        row["n_particles"], row["n_particles_sem"] = grains.mean, grains.error
     if "mass_out" in ds and window.sum() > 1:
         row["mass_flow_out"] = float(np.polyfit(t[window], ds["mass_out"].values[window], 1)[0])
     return row
@@ -177,13 +167,14 @@ def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwar
     if parameters is None:
         varying = [c for c in config_keys if table[c].astype(str).nunique() > 1]
         parameters = list(dict.fromkeys([*varying, *[c for c in ALWAYS if c in table]]))
-    results = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "n_batches",
+    results = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time",
+               "pressure_drop_converged", "regime", "t_start", "t_end", "window",
                "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
-               "n_particles", "mass_flow_out"]
+               "n_particles", "n_particles_sem", "mass_flow_out"]
     columns = ["case", *parameters, *[c for c in results if c in table]]
     out = table[columns].sort_values(list(parameters) or ["case"]).reset_index(drop=True)
     out.attrs["units"] = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s",
-                          "t_end": "s", "slug_rate": "s-1", "slug_velocity": "m s-1",
+                          "t_end": "s", "pressure_drop_correlation_time": "s", "slug_rate": "s-1", "slug_velocity": "m s-1",
                           "slug_length": "m", "mass_flow_out": "kg s-1"}
     return out
 

@@ -5,11 +5,12 @@
         [--every 5] [--csv OUT.csv]
 
 Replays the steady stop of `plugsim run` (engine.run.steady_window, with the case's own
-run.steady_* keys except run.steady_rel_error) on the recorded time series of every case file
+keys except run.steady_rel_error; keys this engine no longer has are left out) on the recorded
+time series of every case file
 that ran with run.until_steady, checking every `--every` output frames as the run does every
 frame. For each tolerance: the simulated time at which the case would have stopped, the steady
 pressure drop the curves would show (Pa/m, analysis.curves.steady_pressure_drop on the series up
-to that time: the window after the fill, MSER-5), and its
+to that time: the replayed steady window, or after the fill and MSER-5 when never steady), and its
 CPU time estimated pro rata of simulated time from the file's cpu_time_s (a warm-started case
 costs about the same per simulated second throughout; a case that fills or drains does not, so
 the estimate is rough there). A tolerance looser than the one the case ran with can only stop
@@ -34,6 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.curves import steady_pressure_drop  # noqa: E402
 from engine import Case  # noqa: E402
+from engine.case import KEYS  # noqa: E402
 from engine.run import steady_window  # noqa: E402
 
 SERIES = ("mass_out", "pressure_drop", "n_particles", "mass_in")
@@ -50,9 +52,10 @@ def replay(ds: xr.Dataset, tolerance: float, every: int = 5) -> tuple[float, flo
     """(stop time s, steady pressure drop of the series up to it Pa/m, steady?) of a recorded run
     had it used run.steady_rel_error = tolerance; the series end (not steady) if it never converges."""
     config = yaml.safe_load(ds.attrs["config_yaml"])
-    run = {f"run.{k}": v for k, v in config["run"].items() if k.startswith("steady_")}
-    run["run.steady_rel_error"] = tolerance
-    case = Case().with_overrides([f"{k}={v}" for k, v in run.items()])
+    keys = {f"{section}.{name}": value for section, values in config.items()
+            for name, value in values.items() if f"{section}.{name}" in KEYS}
+    keys["run.steady_rel_error"] = tolerance
+    case = Case().with_overrides(list(keys.items()))
     t = ds["time"].values.astype(float)
     series = {name: ds[name].values for name in SERIES}
     for k in range(2, len(t) + 1):
@@ -60,15 +63,16 @@ def replay(ds: xr.Dataset, tolerance: float, every: int = 5) -> tuple[float, flo
             continue
         window = steady_window(_Series(t[:k], {n: s[:k] for n, s in series.items()}), case)
         if window:
-            return float(t[k - 1]), _curve_value(ds.isel(time=slice(0, k))), True
-    return float(t[-1]), _curve_value(ds), False
+            ran = ds.isel(time=slice(0, k))
+            ran.attrs.update(stop_reason="steady", steady_start=window.start, steady_end=window.end)
+            return float(t[k - 1]), _curve_value(ran), True
+    ran = ds.copy()
+    ran.attrs.update(stop_reason="max_duration", steady_start=float("nan"), steady_end=float("nan"))
+    return float(t[-1]), _curve_value(ran), False
 
 
 def _curve_value(ds: xr.Dataset) -> float:
-    try:
-        return float(steady_pressure_drop(ds)["pressure_drop"])
-    except ValueError:  # too short a window for the batch means
-        return float("nan")
+    return float(steady_pressure_drop(ds)["pressure_drop"])
 
 
 def table(paths, tolerances, every: int = 5) -> pd.DataFrame:

@@ -188,21 +188,24 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Simulated time to run; with run.until_steady the largest time allowed.", low=0.0,
         low_open=True, high=1e5),
     Key("run.until_steady", False, "",
-        "Stop once the tube has filled and the mean pressure drop has converged (see run.steady_*).",
+        "Stop once the tube has filled, the mean pressure drop has converged and the tube neither "
+        "fills nor drains: the mass leaving equals the mass fed (see run.steady_*, docs/engine.md).",
         kind=bool),
     Key("run.steady_settle", 1.0, "s",
         "Time after the first grains leave the tube that is discarded before averaging.",
         low=0.0, high=1e4),
-    Key("run.steady_min_window", 2.0, "s", "Shortest averaging window before a steady stop.",
+    Key("run.steady_min_window", 2.0, "s",
+        "Shortest averaging window before a steady stop; candidate windows open every half of it.",
         low=0.0, low_open=True, high=1e4),
     Key("run.steady_rel_error", 0.03, "1",
-        "Steady when the batch-means standard error of the mean pressure drop (10 batches) is "
-        "below this fraction of the mean and the grains in the tube agree within this fraction "
-        "between the window's halves.", low=0.0, low_open=True, high=1.0),
-    Key("run.steady_throughput_ratio", 3.0, "1",
-        "Steady only when the grain mass entering and the mass leaving the tube during the window "
-        "agree within this factor (a tube still filling or draining does not); nothing in and "
-        "nothing out (a blocked tube) agrees.", low=1.0, high=1e6),
+        "Steady when the standard error of the mean pressure drop over the window (from its "
+        "integrated autocorrelation time, analysis.timeseries.mean_error) is below this fraction "
+        "of the mean.", low=0.0, low_open=True, high=1.0),
+    Key("run.steady_min_correlation_times", 50.0, "1",
+        "Steady only when the window covers at least this many integrated autocorrelation times "
+        "of the pressure drop, the mass flows and the grains in the tube; the analysis gives no "
+        "error for a shorter window (docs/analysis.md).",
+        low=10.0, high=1e4),
     Key("run.checkpoint_interval", 120.0, "s (wall)",
         "Wall-clock seconds between checkpoints of a running case (0: none periodic; Ctrl-C and "
         "SIGTERM still write one).", low=0.0, high=1e6),

@@ -69,7 +69,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"plugsim: error: --threads: {err}", file=sys.stderr)
         return 2
     try:
-        run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state, threads=args.threads)
+        run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state, threads=args.threads,
+                 early_exit=lambda err: _exit_interrupted(err, args.argv))
     except InitialStateError as err:  # refused before any step
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
@@ -109,6 +110,12 @@ def _animate(args: argparse.Namespace) -> int:
         return 2
     print(f"wrote {done.path}: {done.frames} frames, {done.size / 1e6:.1f} MB")
     return 0
+
+
+def _exit_interrupted(err, argv: list[str]) -> None:
+    """End the process at once with the interruption's one line (nothing to save yet)."""
+    print(f"plugsim: {_interrupted(err, argv)}", file=sys.stderr, flush=True)
+    os._exit(128 + err.signum)
 
 
 def _interrupted(err, argv: list[str]) -> str:

@@ -6,7 +6,6 @@ temporary name that is renamed into place only when complete.
 
 from __future__ import annotations
 
-import math
 import os
 from datetime import datetime, timezone
 from pathlib import Path
@@ -234,12 +233,3 @@ def write_atomically(ds: xr.Dataset, out: str | Path) -> None:
         if tmp.exists():
             tmp.unlink()
 
-
-def batch_means_error(values: np.ndarray, batches: int = 10) -> tuple[float, float]:
-    """Mean and its batch-means standard error (values split into `batches` equal batches)."""
-    values = np.asarray(values, dtype=float)
-    size = len(values) // batches
-    if size < 1:
-        return float(values.mean()) if len(values) else math.nan, math.inf
-    means = values[: size * batches].reshape(batches, size).mean(axis=1)
-    return float(values.mean()), float(means.std(ddof=1) / math.sqrt(batches))

@@ -13,14 +13,17 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
 import yaml
 
+from analysis.timeseries import MeanError, mean_error
+
 from .case import Case
 from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
-from .output import Recorder, batch_means_error, global_attributes, write_atomically
+from .output import Recorder, global_attributes, write_atomically
 from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
@@ -95,18 +98,31 @@ def kernels_compiled() -> bool:
         return True
 
 
-def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
-    """(start, end) of a converged steady window of the pressure drop, or None if not yet steady.
+class SteadyWindow(NamedTuple):
+    """A steady window [start, end] (s) with the pressure drop (Pa) and the grain mass flows out
+    of and into the tube (kg/s) over it."""
 
-    The tube counts as filled once grains have left it; run.steady_settle seconds after that the
-    first candidate window opens, later candidates every half run.steady_min_window. A window
-    [start, now] is steady when it is at least run.steady_min_window long, the batch-means
-    standard error of its mean pressure drop is below run.steady_rel_error of the mean, and the
-    mean number of grains in the tube differs by less than that fraction between its first and
-    second half (the batch-means error does not see a slow drift of the hold-up, e.g. a warm start
-    still adjusting), and the grain mass that entered during the window and the mass that left
-    agree within the factor run.steady_throughput_ratio (the half-means test alone passes a large
-    hold-up that still fills at a third of the feed rate). The earliest steady candidate is returned.
+    start: float
+    end: float
+    pressure_drop: MeanError
+    outflow: MeanError
+    inflow: MeanError
+
+
+def steady_window(recorder: Recorder, case: Case) -> SteadyWindow | None:
+    """The earliest steady window [start, now], or None if not yet steady.
+
+    Candidate starts open run.steady_settle after the first grains leave the tube, then every half
+    run.steady_min_window; a window is at least that long. It is steady when (a) the standard
+    error of its mean pressure drop (analysis.timeseries.mean_error) is below run.steady_rel_error
+    of the mean, the window covering run.steady_min_correlation_times correlation times, and (b)
+    the tube neither fills nor drains: grains go in and come out (mean outflow above twice its
+    error), the mean outflow equals the mean inflow within twice their combined error, or within
+    one grain over the window (the mass books count whole grains), and the mean grains in the
+    tube of the window's halves differ by less than twice the error of that difference, or by
+    one grain. The hold-up test is needed: the error of the mean of a rate series counts the
+    hold-up's fluctuations as if they accumulated, so the outflow test alone passes a tube filling
+    at 4 % of the feed over a 2 s window (tests/engine/test_run.py).
     """
     t = np.asarray(recorder.times)
     out = np.asarray(recorder.series["mass_out"])
@@ -114,24 +130,44 @@ def steady_window(recorder: Recorder, case: Case) -> tuple[float, float] | None:
         return None
     first = t[np.argmax(out > 0)] + case["run.steady_settle"]
     length, tol = case["run.steady_min_window"], case["run.steady_rel_error"]
+    times, interval = case["run.steady_min_correlation_times"], case["output.interval"]
     dp = np.asarray(recorder.series["pressure_drop"])
-    grains = np.asarray(recorder.series["n_particles"], dtype=float)
     into = np.asarray(recorder.series["mass_in"])
-    ratio = case["run.steady_throughput_ratio"]
+    grains = np.asarray(recorder.series["n_particles"], dtype=float)
+    grain = case["particles.density"] * math.pi / 6 * case["particles.diameter"] ** 3
     for start in np.arange(first, t[-1] - length + 1e-9, 0.5 * length):
-        inside = t >= start
-        k = int(np.argmax(inside))
-        entered, left = into[-1] - into[k], out[-1] - out[k]
-        if entered > ratio * left or left > ratio * entered:
+        k = int(np.argmax(t >= start))
+        pressure = mean_error(dp[k:], interval, times)
+        if not (pressure.converged and pressure.mean > 0 and pressure.error < tol * pressure.mean):
             continue
-        mean, error = batch_means_error(dp[inside])
-        if not (mean > 0 and error < tol * mean):
-            continue
-        n = grains[inside]
-        early, late = n[:len(n) // 2].mean(), n[len(n) // 2:].mean()
-        if abs(late - early) <= tol * max(late, 1.0):
-            return float(start), float(t[-1])
+        outflow = mean_error(np.diff(out[k:]) / interval, interval, times)
+        inflow = mean_error(np.diff(into[k:]) / interval, interval, times)
+        if _balanced(outflow, inflow, t[-1] - t[k], grain) and _level(grains[k:], interval, times):
+            return SteadyWindow(float(start), float(t[-1]), pressure, outflow, inflow)
     return None
+
+
+def _level(grains: np.ndarray, interval: float, times: float) -> bool:
+    """The grains in the tube do not drift: the means of the series' halves differ by at most
+    twice the error of their difference (2 x the error of the whole mean: each half has half the
+    samples) or by one grain."""
+    hold = mean_error(grains, interval, times)
+    if not hold.converged:
+        return False
+    half = len(grains) // 2
+    drift = abs(grains[half:].mean() - grains[:half].mean())
+    return drift <= 4 * hold.error or drift <= 1.0
+
+
+def _balanced(outflow: MeanError, inflow: MeanError, duration: float, grain: float) -> bool:
+    """Mass out equals mass fed (kg/s) over `duration` s within twice the combined standard error,
+    or within one `grain` (kg); a tube that delivers nothing measurable is not balanced."""
+    if not (outflow.converged and inflow.converged and inflow.mean > 0):
+        return False
+    if outflow.mean <= 2 * outflow.error:
+        return False
+    gap = abs(outflow.mean - inflow.mean)
+    return gap <= 2 * math.hypot(outflow.error, inflow.error) or gap * duration <= grain
 
 
 class Progress:
@@ -219,8 +255,9 @@ class _Signals:
     it at once; afterwards the first one is noted in `received`, for the loop to save a checkpoint at
     the next frame boundary, and a second one stops it at once."""
 
-    def __init__(self):
+    def __init__(self, early_exit=None):
         self.armed, self.received, self.previous = False, None, {}
+        self.early_exit = early_exit
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
@@ -230,7 +267,12 @@ class _Signals:
 
     def _handle(self, signum, frame):
         if not self.armed or self.received is not None:
-            raise RunInterrupted(signum, None, None)
+            interrupted = RunInterrupted(signum, None, None)
+            if self.early_exit is not None:
+                # an exception raised here can be lost inside numba's compiler (a C callback
+                # ignores it), so a caller that may end the process does so at once
+                self.early_exit(interrupted)
+            raise interrupted
         self.received = signum
 
     def __exit__(self, *exc):
@@ -270,13 +312,14 @@ def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.nda
 
 
 def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None,
-             threads: int = 1) -> Path:
+             threads: int = 1, early_exit=None) -> Path:
     """Run `case` from an empty tube, or from the grains at the end of the case file
     `initial_state` (warm start), or from its checkpoint, or continue the finished case file `out`
     to a longer run.duration, and write the case file `out`. `threads`: numba threads for the
     contact forces (a resumed run keeps its checkpoint's). SIGINT and SIGTERM save a checkpoint at
-    the next frame boundary and raise RunInterrupted."""
-    with _Signals() as signals:
+    the next frame boundary and raise RunInterrupted; before the first frame (nothing to save) they
+    call `early_exit(RunInterrupted)` if given (the command line ends the process there), then raise."""
+    with _Signals(early_exit) as signals:
         return _run_case(case, Path(out), quiet, initial_state, threads, signals)
 
 
@@ -373,14 +416,29 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
              # mass in the tube = initial_mass + mass_in - mass_out
              "initial_mass": 0.0 if start is None else len(start[0]) * sim.model.mass,
              "blocked_time": sim.time if reason == "blocked" else math.nan,
-             "steady_start": window[0] if window else math.nan,
-             "steady_end": window[1] if window else math.nan}
+             **_steady_attributes(window)}
     write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim))
                      .merge(restart_state(sim, digest)), out)
     if ckpt.exists():
         ckpt.unlink()
     log.info("wrote %s (%s, t = %.3f s)", out, reason, sim.time)
     return out
+
+
+def _steady_attributes(window: SteadyWindow | None) -> dict:
+    """Case-file attributes of the steady window (NaN without one): its start and end (s), the
+    mean pressure drop and its standard error (Pa), its correlation time (s), the mean grain mass
+    flows out and in (kg/s)."""
+    nan = math.nan
+    if window is None:
+        return dict.fromkeys(("steady_start", "steady_end", "steady_pressure_drop",
+                              "steady_pressure_drop_sem", "steady_correlation_time",
+                              "steady_outflow", "steady_inflow"), nan)
+    return {"steady_start": window.start, "steady_end": window.end,
+            "steady_pressure_drop": window.pressure_drop.mean,
+            "steady_pressure_drop_sem": window.pressure_drop.error,
+            "steady_correlation_time": window.pressure_drop.tau_s,
+            "steady_outflow": window.outflow.mean, "steady_inflow": window.inflow.mean}
 
 
 def _check_health(sim: Simulation) -> None:

@@ -128,8 +128,9 @@ def build(slugs: list[Slug], duration: float = 4.0, inclination_deg: float = 0.0
           pressure_drop: float = 1000.0, snapshots=None, seed: int = 0, **config) -> xr.Dataset:
     """Case-file Dataset of `duration` s (frames every DT) with the given slugs.
 
-    pressure_drop: steady level per tube length (Pa/m). snapshots: list of (time, positions (n,3),
-    velocities (n,3)) written as the CF ragged array.
+    pressure_drop: steady level per tube length (Pa/m), reached after 6 s, with AR(1) noise of
+    lag-one correlation 0.8 (tau = 9 frames: 10 s after the rise cover 100 correlation times).
+    snapshots: list of (time, positions (n,3), velocities (n,3)) written as the CF ragged array.
     """
     times = np.round(np.arange(int(round(duration / DT))) * DT, 10)
     x = slice_centres()
@@ -138,7 +139,7 @@ def build(slugs: list[Slug], duration: float = 4.0, inclination_deg: float = 0.0
     cfg = case_config(inclination_deg, **config)
     ds = xr.Dataset(
         {
-            "pressure_drop": ("time", pressure_signal(times, pressure_drop * L_TUBE, seed=seed),
+            "pressure_drop": ("time", pressure_signal(times, pressure_drop * L_TUBE, rho=0.8, seed=seed),
                               {"units": "Pa", "long_name": "inlet minus outlet pressure"}),
             "n_particles": ("time", np.round(grains), {"units": "1", "long_name": "grains in the tube"}),
             "mass_in": ("time", times * 2.49 / 3600, {"units": "kg"}),

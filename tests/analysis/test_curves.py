@@ -1,11 +1,11 @@
-"""Steady pressure drop with batch-means error, regime rule, sweep table."""
+"""Steady pressure drop and its error, regime rule, sweep table."""
 
 import math
 
 import numpy as np
 import pytest
 
-from analysis import (batch_means, case_summary, mser_start, regime, steady_pressure_drop,
+from analysis import (case_summary, mean_error, mser_start, regime, steady_pressure_drop,
                       sweep_table)
 from analysis import curves
 from analysis.casefile import seconds
@@ -16,46 +16,35 @@ from . import synthetic as S
 TIMES = np.arange(2250) * 0.01
 
 
-def test_batch_means_match_numpy():
-    v = np.random.default_rng(0).normal(size=1003)
-    mean, sem = batch_means(v, 10)
-    means = v[3:].reshape(10, 100).mean(axis=1)  # the first 1003 % 10 samples are dropped
-    assert mean == pytest.approx(np.mean(v[3:]), rel=1e-12)
-    assert sem == pytest.approx(np.std(means, ddof=1) / math.sqrt(10), rel=1e-12)
-
-
-def test_batch_means_error_covers_the_true_mean_of_correlated_noise():
-    # 200 runs: a 6 s rise, then AR(1) noise (10 %, lag-one correlation 0.95, i.e. correlated over
-    # ~0.4 s). With 10 batches the true mean lies within 2 standard errors in 92 % of runs for
-    # independent batch means (t, 9 dof); residual correlation between batches lowers that
-    # (measured 88 %). The naive std/sqrt(n) would cover ~25 %. Binomial spread for 200 runs: 2 %.
+def test_error_after_mser_covers_the_true_mean_of_correlated_noise():
+    # 200 runs: a 6 s rise, then AR(1) noise (10 %, lag-one correlation 0.95, tau = 39 frames) for
+    # 54 s, ~140 correlation times: the true mean lies within 2 standard errors in 95 % of runs for
+    # exact errors, measured 96.5 % here; the naive std/sqrt(n) would cover ~25 %. Binomial spread
+    # for 200 runs: 1.5 %.
+    times = np.arange(6000) * 0.01
     z, starts = [], []
     for seed in range(200):
-        p = S.pressure_signal(TIMES, 1000.0, seed=seed)
+        p = S.pressure_signal(times, 1000.0, seed=seed)
         k = mser_start(p)
-        mean, sem = batch_means(p[k:], 10)
-        z.append((mean - 1000.0) / sem)
-        starts.append(TIMES[k])
+        est = mean_error(p[k:], 0.01)
+        z.append((est.mean - 1000.0) / est.error)
+        starts.append(times[k])
     z = np.array(z)
-    assert 0.80 <= np.mean(np.abs(z) < 2) <= 0.97
+    assert 0.90 <= np.mean(np.abs(z) < 2) <= 0.99
     assert abs(np.mean(z)) < 0.25  # no bias from the transient: 3 x the spread of the mean of z
-    # MSER finds the end of the rise (6 s) within the noise (measured 4.1-11.2 s)
+    # MSER finds the end of the rise (6 s) within the noise
     assert 3.5 <= min(starts) and max(starts) <= 12.0 and 5.0 <= np.mean(starts) <= 7.0
-
-
-def test_mser_keeps_a_stationary_series_whole():
-    v = np.random.default_rng(1).normal(size=2000)
-    assert mser_start(v) < 200  # measured 0-10 % on white noise; a rise would push it to > 25 %
 
 
 def test_steady_pressure_drop_in_pa_per_metre_with_an_explicit_window():
     ds = S.build([], 22.5, pressure_drop=1500.0, seed=3)
     res = steady_pressure_drop(ds, t_start=8.0)
     assert res["t_start"] == pytest.approx(8.0)
-    expected = np.asarray(ds["pressure_drop"].values)[800:] / S.L_TUBE
-    mean, sem = batch_means(expected, 10)
-    assert res["pressure_drop"] == pytest.approx(mean, rel=1e-12)
-    assert res["pressure_drop_sem"] == pytest.approx(sem, rel=1e-12)
+    expected = mean_error(np.asarray(ds["pressure_drop"].values)[800:] / S.L_TUBE, S.DT)
+    assert res["pressure_drop"] == pytest.approx(expected.mean, rel=1e-12)
+    assert res["pressure_drop_sem"] == pytest.approx(expected.error, rel=1e-12)
+    assert res["pressure_drop_correlation_time"] == pytest.approx(expected.tau_s, rel=1e-12)
+    assert res["window"] == "given" and res["pressure_drop_converged"]
     assert abs(res["pressure_drop"] - 1500.0) < 4 * res["pressure_drop_sem"]
 
 
@@ -152,6 +141,27 @@ def test_fit_deviation_accepts_its_model_and_rejects_the_other():
     assert dev < 1e-9 and p["slope"] == pytest.approx(2.0)
     with pytest.raises(ValueError, match="unknown model"):
         curves.fit_deviation(mdot, mdot, mdot, "cubic")
+
+
+def test_the_window_of_a_run_that_stopped_steady_gives_its_number():
+    # the run's steady window [10 s, end] wins over the fill + MSER rule (which would start at ~6 s)
+    ds = S.build([], 22.5, pressure_drop=1500.0, seed=4)
+    t = seconds(ds["time"].values)
+    dp = np.asarray(ds["pressure_drop"].values)
+    ds.attrs.update(stop_reason="steady", steady_start=10.0, steady_end=float(t[-1]))
+    res = steady_pressure_drop(ds)
+    run = mean_error(dp[t >= 10.0], S.DT)  # what engine.run.steady_window computes (Pa)
+    assert res["window"] == "run" and res["t_start"] == 10.0 and res["t_end"] == t[-1]
+    assert res["pressure_drop"] * S.L_TUBE == pytest.approx(run.mean, rel=1e-12)
+    assert res["pressure_drop_sem"] * S.L_TUBE == pytest.approx(run.error, rel=1e-12)
+    # and the case summary (curves, validation, captions) carries the same numbers
+    summary = case_summary(ds)
+    assert summary["pressure_drop"] == res["pressure_drop"]
+    assert summary["pressure_drop_sem"] == res["pressure_drop_sem"]
+    # a run that did not stop steady: fill + MSER
+    ds.attrs.update(stop_reason="max_duration", steady_start=float("nan"), steady_end=float("nan"))
+    res = steady_pressure_drop(ds)
+    assert res["window"] == "fill+mser" and 3.5 <= res["t_start"] <= 9.0
 
 
 def test_steady_window_starts_after_the_tube_has_filled():

@@ -208,6 +208,9 @@ def test_a_cold_kernel_cache_is_announced_and_an_interrupt_while_compiling_ends_
     proc.send_signal(signal.SIGINT)
     rest = proc.stderr.read().strip().splitlines()
     assert proc.wait(timeout=60) == 130
-    assert len(rest) == 1 and rest[0].startswith("plugsim: interrupted by SIGINT before any new frame, "
-                                                 "nothing saved; start again with: plugsim run "), rest
+    # the run's own info line (time step, nodes) may come first: the compile of the gas kernels
+    # while the case is set up can end before the signal; the interruption is one line, no traceback
+    assert len(rest) <= 2 and not any("Traceback" in line for line in rest), rest
+    assert rest[-1].startswith("plugsim: interrupted by SIGINT before any new frame, "
+                               "nothing saved; start again with: plugsim run "), rest
     assert not out.exists() and not checkpoint_path(out).exists()

@@ -7,13 +7,16 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import xarray as xr
 
+from analysis import open_case, steady_pressure_drop
 from engine import Case, Simulation
-from engine.output import FIELDS, SERIES, Recorder, batch_means_error
+from analysis.timeseries import mean_error
+from engine.output import FIELDS, SERIES
 from engine.run import RunError, _check_health, checkpoint_path, run_case, steady_window
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -108,78 +111,104 @@ def test_killed_run_leaves_no_file_and_resumes_to_an_identical_result(tmp_path):
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
 
-def test_steady_stop_on_a_synthetic_signal():
-    case = Case().with_overrides(["run.steady_settle=1", "run.steady_min_window=2", "run.steady_rel_error=0.03"])
-    rng = np.random.default_rng(0)
-    t = np.arange(0, 6, 0.01)
-    fill = 2.0
-    # filling ramp then a noisy plateau of 1000 Pa (10 % noise): the SE of 300 frames is ~0.6 %
-    dp = np.where(t < fill, 1000 * t / fill, 1000) + rng.normal(0, 100, len(t))
-    stop = _first_steady_window(case, t, dp, np.full(len(t), 3000.0), fill)
-    assert stop is not None
-    assert stop[0] == pytest.approx(fill + 1.0)  # opens steady_settle after the first outflow
-    assert stop[1] - stop[0] == pytest.approx(2.0, abs=0.011)  # the shortest window suffices here
+STEADY = ["run.steady_settle=1", "run.steady_min_window=2", "run.steady_rel_error=0.03"]
+GRAIN = 937.0 * math.pi / 6 * 0.0014**3  # kg, the default grain
+FEED = 2.49 / 3600  # kg/s, the default feed
 
 
-def _first_steady_window(case, t, dp, grains, fill, outflow=1.0):
-    """First steady window of synthetic series: grains enter at 1 kg/s from t = 0 and leave at
-    `outflow` kg/s from `fill` on."""
-    rec = Recorder.__new__(Recorder)
-    rec.times, rec.series = [], {"mass_in": [], "mass_out": [], "pressure_drop": [], "n_particles": []}
-    for k, time_k in enumerate(t):
-        rec.times.append(time_k)
-        rec.series["mass_in"].append(time_k)
-        rec.series["mass_out"].append(outflow * (time_k - fill) + 1e-9 if time_k >= fill else 0.0)
-        rec.series["pressure_drop"].append(dp[k])
-        rec.series["n_particles"].append(grains[k])
-        stop = steady_window(rec, case)
-        if stop:
-            return stop
+def ar1(n, rho, sd, seed):
+    """AR(1) noise of standard deviation sd and lag-one correlation rho, n frames."""
+    rng = np.random.default_rng(seed)
+    x = np.empty(n)
+    x[0] = rng.normal() * sd
+    eps = rng.normal(size=n) * sd * math.sqrt(1 - rho**2)
+    for k in range(1, n):
+        x[k] = rho * x[k - 1] + eps[k]
+    return x
+
+
+def recorded(t, dp, grains, fill=1.0, feed=FEED):
+    """Recorder-like series with consistent mass books: grains fed at `feed` kg/s from t = 0, none
+    leave before `fill`, then the tube holds `grains` (array) and the rest has left."""
+    mass_in = feed * t
+    held = np.where(t < fill, mass_in, np.minimum(grains * GRAIN, mass_in))
+    return SimpleNamespace(times=t, series={"pressure_drop": dp, "mass_in": mass_in,
+                                            "mass_out": mass_in - held, "n_particles": held / GRAIN})
+
+
+def first_steady(case, rec, every=10):
+    """The first steady window of `rec` checked every `every` frames, as a run checks every frame."""
+    for k in range(every, len(rec.times) + 1, every):
+        window = steady_window(SimpleNamespace(times=rec.times[:k], series={
+            name: values[:k] for name, values in rec.series.items()}), case)
+        if window:
+            return window
     return None
 
 
-def test_steady_stop_waits_for_a_drifting_hold_up():
-    # The same plateau while the grains in the tube still climb by 6 % per second until 4 s (a warm
-    # start adjusting, as measured in a vertical run): the pressure drop's batch-means error alone
-    # would accept the window [1 s, 3 s]; the hold-up test moves the window past most of the climb.
-    case = Case().with_overrides(["run.steady_settle=1", "run.steady_min_window=2", "run.steady_rel_error=0.03"])
-    rng = np.random.default_rng(0)
+def steady_hold_up(t, level=100.0, seed=0):
+    """Grains in a steady tube: a level with AR(1) fluctuations of 5 grains, lag-one correlation
+    0.5 (tau = 3 frames: 50 correlation times fit in the shortest window)."""
+    return level + ar1(len(t), 0.5, 5.0, seed)
+
+
+def test_white_noise_stops_at_the_shortest_window_after_the_fill():
+    # 10 % white noise on 1000 Pa: the error of a 2 s mean (200 frames) is 0.7 %
+    case = Case().with_overrides(STEADY)
     t = np.arange(0, 8, 0.01)
-    dp = 1000 + rng.normal(0, 100, len(t))
-    grains = 3000 * (1 + 0.06 * np.minimum(t, 4.0))
-    stop = _first_steady_window(case, t, dp, grains, fill=0.0)
-    assert stop is not None and stop[0] >= 3.0 and stop[1] >= 5.0
-    window = grains[(t >= stop[0]) & (t <= stop[1])]
-    halves = window[:len(window) // 2].mean(), window[len(window) // 2:].mean()
-    assert abs(halves[1] - halves[0]) <= 0.03 * halves[1]
+    dp = np.where(t < 1, 1000 * t, 1000) + np.random.default_rng(0).normal(0, 100, t.size)
+    stop = first_steady(case, recorded(t, dp, steady_hold_up(t)))
+    assert stop is not None
+    assert stop.start == pytest.approx(2.0, abs=0.011)  # steady_settle after the first outflow
+    assert stop.end - stop.start == pytest.approx(2.0, abs=0.11)
+    assert stop.pressure_drop.error == pytest.approx(100 / math.sqrt(200), rel=0.2)
+    assert abs(stop.outflow.mean - FEED) <= 2 * math.hypot(stop.outflow.error, stop.inflow.error)
 
 
-def test_steady_stop_waits_while_the_tube_still_fills():
-    # A large hold-up (6400 grains) that still fills: the case at 0.15 m/s of the horizontal paper
-    # sweep let 8 % of its inflow out and grew by 3 % per second, which the half-means test
-    # (3 % between halves 1 s apart) passed. Out at a tenth of the inflow: never steady; at a half
-    # (the scatter of steady 2 s windows, which exit whole slugs): steady as soon as without the test.
-    case = Case().with_overrides(["run.steady_settle=1", "run.steady_min_window=2", "run.steady_rel_error=0.03"])
-    rng = np.random.default_rng(0)
-    t = np.arange(0, 8, 0.01)
-    dp = 1000 + rng.normal(0, 100, len(t))
-    grains = np.full(len(t), 6400.0)
-    assert _first_steady_window(case, t, dp, grains, fill=0.5, outflow=0.1) is None
-    steady = _first_steady_window(case, t, dp, grains, fill=0.5, outflow=0.5)
-    assert steady is not None and steady[0] == pytest.approx(1.5)
-    # a tube that lets nothing in and nothing out (blocked) is not held up by the test
-    rec = Recorder.__new__(Recorder)
-    rec.times = list(t)
-    rec.series = {"mass_in": [1.0] * len(t), "mass_out": [1e-3] * len(t), "pressure_drop": list(dp),
-                  "n_particles": list(grains)}
-    assert steady_window(rec, case) is not None
+def test_a_correlated_signal_needs_its_correlation_times_and_a_noisy_one_its_error():
+    # AR(1) noise with lag-one correlation 0.97 (tau = 65 frames, 0.65 s): the 3 % error is
+    # reached after ~3 s, but 50 correlation times take ~33 s; the old 10 batches passed at 2 s
+    case = Case().with_overrides(STEADY)
+    t = np.arange(0, 60, 0.01)
+    dp = 1000 + ar1(t.size, 0.97, 100.0, seed=1)
+    stop = first_steady(case, recorded(t, dp, steady_hold_up(t)))
+    # the earliest candidate that passes: a later start can pass first when its own tau estimate
+    # is smaller (here the one at 8 s, stopping at 34 s)
+    assert stop is not None and stop.start >= 2.0 - 0.011
+    length = stop.end - stop.start
+    assert length >= 50 * stop.pressure_drop.tau_s - 0.1  # the estimate of tau the rule used
+    assert 0.5 * 50 * 0.65 <= length <= 1.5 * 50 * 0.65  # tau estimated within its ~30 % scatter
+    # white noise of 100 %: the correlation times are covered at once, the error reaches 3 % after
+    # 1111 frames (11 s): the window stops then, not at a fixed length
+    noisy = 1000 + np.random.default_rng(2).normal(0, 1000, t.size)
+    stop = first_steady(case, recorded(t, noisy, steady_hold_up(t)))
+    assert stop is not None and stop.start == pytest.approx(2.0, abs=0.011)
+    assert 0.8 * 11.1 <= stop.end - stop.start <= 1.2 * 11.1  # the error's own ~10 % scatter
 
 
-def test_batch_means_error_matches_the_standard_error_of_independent_batches():
-    values = np.repeat(np.arange(10.0), 7)  # batch means 0..9
-    mean, error = batch_means_error(values, batches=10)
-    assert mean == pytest.approx(4.5)
-    assert error == pytest.approx(np.std(np.arange(10.0), ddof=1) / math.sqrt(10))
+def test_a_tube_still_filling_is_not_steady():
+    # the hold-up climbs by 20 grains per second (4 % of the 514 grains/s fed) while the pressure
+    # drop is already flat: never steady (the outflow test alone passed it after 2 s); the same
+    # tube with a steady hold-up is
+    case = Case().with_overrides(STEADY)
+    t = np.arange(0, 30, 0.01)
+    dp = 1000 + np.random.default_rng(3).normal(0, 100, t.size)
+    filling = steady_hold_up(t) + 20.0 * np.maximum(t - 1.0, 0.0)
+    assert first_steady(case, recorded(t, dp, filling)) is None
+    assert first_steady(case, recorded(t, dp, steady_hold_up(t))) is not None
+
+
+def test_a_tube_that_takes_nothing_and_delivers_nothing_is_not_steady():
+    # blocked after a first spill: no grain enters or leaves from t = 1.5 s on, the pressure drop
+    # is flat and converged
+    case = Case().with_overrides(STEADY)
+    t = np.arange(0, 20, 0.01)
+    dp = 1000 + np.random.default_rng(4).normal(0, 100, t.size)
+    rec = recorded(t, dp, steady_hold_up(t))
+    for name in ("mass_in", "mass_out", "n_particles"):
+        values = rec.series[name]
+        values[t > 1.5] = values[np.searchsorted(t, 1.5)]
+    assert first_steady(case, rec) is None
 
 
 def test_until_steady_stops_a_short_real_case_and_records_the_window(tmp_path):
@@ -188,7 +217,7 @@ def test_until_steady_stops_a_short_real_case_and_records_the_window(tmp_path):
     case = Case.from_yaml(CASE, [
         "tube.length=0.07", "gas.nodes_x=20", "numerics.gas_interval=10", "run.duration=6",
         "run.until_steady=true", "run.steady_settle=0.2", "run.steady_min_window=0.5",
-        "run.steady_rel_error=0.1"])
+        "run.steady_rel_error=0.1", "run.steady_min_correlation_times=10"])
     out = run_case(case, tmp_path / "steady.nc")
     with xr.open_dataset(out) as ds:
         assert ds.attrs["stop_reason"] == "steady"
@@ -200,8 +229,15 @@ def test_until_steady_stops_a_short_real_case_and_records_the_window(tmp_path):
         assert end == pytest.approx(float(ds.time[-1])) and end - start >= 0.5 - 1e-9  # frame round-off
         assert end < 6.0
         window = ds.pressure_drop.sel(time=slice(start, end)).values
-        mean, error = batch_means_error(window)
-        assert error < 0.1 * mean
+        est = mean_error(window, 0.01, 10)
+        assert est.error < 0.1 * est.mean
+        # one case, one number: the run's attributes and the analysis agree to the digit
+        assert ds.attrs["steady_pressure_drop"] == pytest.approx(est.mean, rel=1e-12)
+        assert ds.attrs["steady_pressure_drop_sem"] == pytest.approx(est.error, rel=1e-12)
+        res = steady_pressure_drop(open_case(out))
+        assert res["window"] == "run" and res["t_start"] == start and res["t_end"] == end
+        assert res["pressure_drop"] * 0.07 == pytest.approx(est.mean, rel=1e-12)
+        assert res["pressure_drop_sem"] * 0.07 == pytest.approx(est.error, rel=1e-12)
 
 
 def test_numerical_failure_exits_1_with_one_line_and_no_file(tmp_path):
@@ -251,9 +287,10 @@ VERTICAL_SHORT = ["tube.length=0.04", "gas.nodes_x=11", "tube.inclination_deg=90
 
 
 def _mean_after(path, t_from):
-    """Batch-means mean and standard error of the pressure drop after t_from (s)."""
+    """Mean and standard error of the pressure drop after t_from (s)."""
     with xr.open_dataset(path) as ds:
-        return batch_means_error(ds.pressure_drop.values[ds.time.values >= t_from])
+        est = mean_error(ds.pressure_drop.values[ds.time.values >= t_from], 0.01, 10)
+        return est.mean, est.error
 
 
 def test_warm_start_reaches_the_same_steady_state_as_a_cold_start(tmp_path):

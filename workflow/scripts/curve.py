@@ -1,6 +1,6 @@
 """Rule curve: the table of one sweep, one row per case: its parameters, then the steady pressure
-drop (Pa/m) +- batch-means standard error, regime and the other case summaries (SI units; the
-first line of the CSV holds the units as JSON attributes).
+drop (Pa/m) +- standard error (analysis.timeseries.mean_error), regime and the other case
+summaries (SI units; the first line of the CSV holds the units as JSON attributes).
 
 Standalone:
     python workflow/scripts/curve.py --input results/summaries/h_vs/a.json \
@@ -12,10 +12,12 @@ import pandas as pd
 
 from _helpers import read_json, setup_logging, snakemake_or_cli, write_table
 
-RESULTS = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "stop_reason",
+RESULTS = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time", "regime",
+           "t_start", "t_end", "window", "stop_reason",
            "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
            "n_particles", "n_particles_sem", "mass_flow_out", "n_slugs", "dashpot_resolved"]
-UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s", "t_end": "s",
+UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1",
+         "pressure_drop_correlation_time": "s", "t_start": "s", "t_end": "s",
          "slug_rate": "s-1", "slug_velocity": "m s-1", "slug_length": "m", "mass_flow_out": "kg s-1"}
 
 

@@ -1,8 +1,8 @@
 """Rule detect: slugs of one case (detected, tracked) and its summary.
 
 The summary holds the case configuration (dotted keys), the sweep point, the steady pressure drop
-(Pa/m) +- its batch-means standard error and window, regime, grains in the tube (+- batch-means
-error), slug rate/velocity/length at the analysis position, and how the run stopped.
+(Pa/m) +- its standard error (analysis.timeseries.mean_error) and window, regime, grains in the
+tube (+- the same error), slug rate/velocity/length at the analysis position, and how the run stopped.
 
 Standalone:
     python workflow/scripts/detect.py --input case=results/cases/h_default/base.nc \
@@ -16,7 +16,7 @@ from _helpers import setup_logging, snakemake_or_cli, write_json, write_table
 def main(smk) -> None:
     log = setup_logging(smk)
     from analysis.casefile import open_case, seconds
-    from analysis.curves import batch_means, case_summary
+    from analysis.curves import case_summary
     from analysis.slugs import detect
 
     threshold = float(smk.params.get("threshold", 0.6) or 0.6)
@@ -25,11 +25,6 @@ def main(smk) -> None:
     log.info("%d slug-frames, %d slugs", len(slugs), slugs["slug_id"].nunique() if len(slugs) else 0)
     summary = case_summary(ds, threshold=threshold, slugs=slugs,
                            position=smk.params.get("position"))
-    window = seconds(ds["time"].values) >= summary["t_start"]
-    try:
-        summary["n_particles_sem"] = batch_means(ds["n_particles"].values[window])[1]
-    except ValueError:  # fewer frames than batches
-        summary["n_particles_sem"] = float("nan")
     summary["pressure_drop_unit"] = "Pa m-1"
     summary.update({"sweep": smk.params.get("sweep"), "point": smk.params.get("point"),
                     "parameters": smk.params.get("parameters") or {},

@@ -45,14 +45,25 @@ def _last_window(ds, seconds_shown):
 
 
 def _window_facts(ds, t_range) -> str:
-    """Mean grains in the tube and pressure drop over the window drawn, as in the papers' captions."""
+    """Mean grains in the tube and pressure drop over the window drawn, as in the papers' captions,
+    with the tables' estimator (a window drawn is not the steady window of the tables)."""
     from analysis.casefile import geometry, seconds
+    from analysis.curves import sampling_interval
+    from analysis.timeseries import mean_error
     t = seconds(ds["time"].values)
     sel = (t >= t_range[0]) & (t <= t_range[1])
-    grains = float(np.mean(ds["n_particles"].values[sel]))
-    dp = float(np.mean(ds["pressure_drop"].values[sel])) / geometry(ds).tube_length / HPA
-    return (f"shown: t = {t_range[0]:.2f}-{t_range[1]:.2f} s; on average {grains:.0f} grains in the "
-            f"tube and a pressure drop of {dp:.3g} hPa/m over this window")
+    step = sampling_interval(t)
+    grains = mean_error(ds["n_particles"].values[sel], step)
+    dp = mean_error(ds["pressure_drop"].values[sel] / geometry(ds).tube_length / HPA, step)
+    both = grains.converged and dp.converged
+    text = (f"shown: t = {t_range[0]:.2f}-{t_range[1]:.2f} s; on average {_value(grains, '.0f', both)} "
+            f"grains in the tube and a pressure drop of {_value(dp, '.3g', both)} hPa/m over this window")
+    return text if both else text + " (no standard errors: it covers too few correlation times)"
+
+
+def _value(est, spec: str, with_error: bool) -> str:
+    """'mean +- standard error' or the mean alone."""
+    return f"{est.mean:{spec}} +- {est.error:.2g}" if with_error else f"{est.mean:{spec}}"
 
 
 # ---- one function per kind: (inputs, spec, analysis settings) -> (Figure, [facts]) ------------
