@@ -20,7 +20,7 @@ from analysis import curves
 from _helpers import ensure_parent, read_json, read_table, setup_logging, snakemake_or_cli
 
 TO_UNIT = {"hPa/m": 0.01, "Pa/m": 1.0, "m/s": 1.0, "m": 1.0, "cm": 100.0, "1": 1.0, "1/s": 1.0,
-           "Pa": 1.0, "r/d": 1.0}
+           "Pa": 1.0, "r/d": 1.0, "J": 1.0}
 NAN = float("nan")
 
 
@@ -79,11 +79,17 @@ def _stats_at(st, ctx):
 
 
 def slug_stat(st, ctx):
+    """Mean over the slugs passing the position (the papers' per-passage statistics); for the
+    velocities the note gives the time-weighted mean too."""
     row = _stats_at(st, ctx)
     q = st["quantity"]
     if not row["n_slugs"]:
         raise NotMeasurable("no slug passed the position")
-    return row[f"{q}_mean"], row[f"{q}_sem"], "sem"
+    note = ""
+    if f"{q}_time_mean" in row and math.isfinite(row[f"{q}_time_mean"]):
+        note = (f"time-weighted {row[f'{q}_time_mean']:.4g} +- {row[f'{q}_time_sem']:.2g} "
+                f"{st.get('unit', '')} (per passage is the papers' reading)")
+    return row[f"{q}_mean"], row[f"{q}_sem"], "sem", note
 
 
 def slug_rate(st, ctx):
