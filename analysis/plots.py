@@ -286,6 +286,36 @@ def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocit
     return fig
 
 
+def parameter_words(key: str) -> tuple[str, str, float]:
+    """(name in words, unit, factor from SI to that unit) of a case key, from PARAMETERS; the key
+    itself where it has no entry."""
+    label, factor = PARAMETERS.get(key, (key, 1.0))
+    if label.endswith(")") and " (" in label:
+        name, unit = label[:-1].rsplit(" (", 1)
+        return name, unit, factor
+    return label, "", factor
+
+
+def parameter_value(key: str, value) -> str:
+    """A case key's value in the papers' unit, e.g. '2.49 kg/h' or '0.067 cP'."""
+    _, unit, factor = parameter_words(key)
+    try:
+        return f"{float(value) * factor:g} {unit}".strip()
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def curve_title(table: pd.DataFrame, x: str) -> str:
+    """Title in words of a curve figure: the tube and what is plotted against what."""
+    vertical = None
+    if "vertical" in table and len(table):
+        vertical = str(table["vertical"].iloc[0]).strip().lower() in ("true", "1", "1.0")
+    elif "tube.inclination_deg" in table and len(table):
+        vertical = float(table["tube.inclination_deg"].iloc[0]) >= 45.0
+    tube = {True: "Vertical tube: ", False: "Horizontal tube: ", None: ""}[vertical]
+    return f"{tube}pressure drop against the {parameter_words(x)[0]}"
+
+
 UNRESOLVED_BULK = "bulk, step not converged\n(tangential dashpot)"
 
 

@@ -15,7 +15,8 @@ from _helpers import read_json, setup_logging, snakemake_or_cli, write_table
 RESULTS = ["pressure_drop", "pressure_drop_sem", "regime", "t_start", "t_end", "stop_reason",
            "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "travel_speed",
            "max_velocity", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
-           "mass_flow_out", "mass_flow_fed", "delivery", "n_slugs", "dashpot_resolved"]
+           "mass_flow_out", "mass_flow_fed", "delivery", "n_slugs", "dashpot_resolved",
+           "initial_state", "vertical"]
 UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s", "t_end": "s",
          "slug_rate": "s-1", "slug_velocity": "m s-1", "travel_speed": "m s-1",
          "max_velocity": "m s-1", "slug_length": "m", "slug_length_total": "m",

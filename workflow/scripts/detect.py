@@ -35,6 +35,7 @@ def main(smk) -> None:
                     "parameters": smk.params.get("parameters") or {},
                     "case_file": str(smk.input.case),
                     "stop_reason": ds.attrs.get("stop_reason", ""),
+                    "initial_state": str(ds.attrs.get("initial_state", "")),  # warm start from
                     "wall_time_s": float(ds.attrs.get("wall_time_s", float("nan"))),
                     "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
                     "time_step": float(ds.attrs.get("time_step", float("nan"))),

@@ -256,6 +256,12 @@ def _unresolved_bulk(st) -> int:
     return count
 
 
+def _figures(st) -> list[str]:
+    """The paper figures that show the statement's quantity (its `figure`: a name or a list)."""
+    figs = st.get("figure") or []
+    return [figs] if isinstance(figs, str) else [str(f) for f in figs]
+
+
 def compare(st, ctx) -> dict:
     """The statement's row; its note names the bulk points among the inputs that carry a time-step
     error (docs/performance.md, "The tangential dashpot and the time step")."""
@@ -272,7 +278,7 @@ def _compare(st, ctx) -> dict:
            "justification": " ".join(str(st.get("justification", "")).split()),
            "cases": ", ".join(c for c in st.get("case_names") or [] if c) or st.get("sweep", ""),
            "ours": NAN, "ours_error": NAN, "error_kind": "", "ratio": NAN, "within": "",
-           "note": ""}
+           "note": "", "figure": " ".join(_figures(st))}
     if not st.get("files"):
         why = ("not run yet (partial validation: its case or curve is not produced)" if st.get("pending")
                else "the case or sweep is not in this configuration")
