@@ -277,9 +277,13 @@ def sweep_text(sweep):
     if tied:
         text += f" ({tied})"
     warm = [p for p in POINTS[sweep] if (sweep, p) in WARM_SOURCE]
-    starts = (f"{len(warm)} of {len(POINTS[sweep])} cases start from the final grains of another "
-              f"case ({', '.join(warm)}), the others from an empty tube" if warm
-              else "every case starts from an empty tube")
+    if not warm:
+        starts = "every case starts from an empty tube"
+    elif len(warm) == len(POINTS[sweep]):
+        starts = "every case starts from the final grains of another case (named per point below)"
+    else:
+        starts = (f"{len(warm)} of {len(POINTS[sweep])} cases start from the final grains of another "
+                  f"case ({', '.join(warm)}), the others from an empty tube")
     return text + f". Other parameters as in the first case: {case_text(first)}; {starts}"
 
 

@@ -342,6 +342,10 @@ def validation_facts(path, fig: str) -> list[str]:
     rows = table[table["figure"].astype(str).str.split().apply(lambda figs: fig in figs)]
     facts = []
     for r in rows.itertuples():
+        if r.within == "not available":
+            facts.append(f"validation {r.id} ({r.statement}): not available ({r.note}); the paper's "
+                         f"{r.paper_value} ({r.source})")
+            continue
         ours = _number(r.ours, r.ours_error, r.unit)
         facts.append(f"validation {r.id} ({r.statement}): ours {ours} against the paper's "
                      f"{r.paper_value} ({r.source}): within tolerance: {r.within}"
