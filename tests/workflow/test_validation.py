@@ -153,3 +153,21 @@ def test_every_slug_statement_names_a_measured_quantity():
             assert st["quantity"] in QUANTITIES, st["id"]
         if "length" in st.get("quantity", ""):
             assert st["quantity"] == "length_total", st["id"]  # the papers' reading, with the ends
+
+
+def test_blocked_points_are_left_out_of_a_curve_and_noted(tmp_path):
+    v = np.array([0.15, 0.25, 0.5, 0.75, 1.0])
+    table = pd.DataFrame({"gas.superficial_velocity": v,
+                          "pressure_drop": 100.0 * np.array([5.0, 70, 20, 12, 10.0]),
+                          "pressure_drop_sem": 50.0,
+                          "regime": ["blocked", "bulk", "slug", "slug", "slug"]})
+    path = tmp_path / "vs.csv"
+    write_table(table, path)
+    spec = {"regime": "bulk", "value": 0.3, "tolerance": 0.1, "unit": "m/s"}
+    row = validation.compare(statement(str(path), "transition", key="gas.superficial_velocity", **spec), {})
+    # the blocked 0.15 m/s point is not the curve's first point: the transition lies at 0.375
+    assert row["ours"] == pytest.approx(0.375) and "1 blocked point(s) left out" in row["note"]
+    # with it, the low blocked pressure drop would make the curve rise first; left out it falls
+    row = validation.compare(statement(str(path), "trend", key="gas.superficial_velocity",
+                                       expected="decreasing", unit="-"), {})
+    assert row["ours"] == "decreasing" and row["within"] == "yes"

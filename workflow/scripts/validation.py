@@ -131,11 +131,15 @@ def selection_mean(st, ctx):
     return float(np.mean(values)), sem, "sem"
 
 
-def _curve_rows(st, within=False):
-    """The sweep's curve at `where`, sorted by `x`; with within=True only x in `within`."""
+def _curve_rows(st, within=False, blocked=False):
+    """The sweep's curve at `where`, sorted by `x`; with within=True only x in `within`. Blocked
+    points (regime "blocked": the tube did not deliver the feed the point is labelled with) are no
+    part of the curve and left out, unless blocked=True."""
     table = read_table(st["files"]["curve"])
     for key, value in (st.get("where") or {}).items():
         table = table[np.isclose(table[key].astype(float), float(value))]
+    if not blocked and "regime" in table:
+        table = table[table["regime"] != "blocked"]
     if within:
         lo, hi = st.get("within", [-np.inf, np.inf])
         table = table[(table[st["x"]] >= lo) & (table[st["x"]] <= hi)]
@@ -269,7 +273,22 @@ def compare(st, ctx) -> dict:
     if st.get("files") and (n := _unresolved_bulk(st)):
         row["note"] = "; ".join(filter(None, [row["note"], f"{n} bulk point(s) in its data carry a "
                                               "time-step error (tangential dashpot not resolved)"]))
+    if st.get("files") and (blocked := _blocked(st)):
+        row["note"] = "; ".join(filter(None, [row["note"], blocked]))
     return row
+
+
+def _blocked(st) -> str:
+    """Note on blocked inputs: curve points left out, or a case that is blocked itself."""
+    files = st["files"]
+    if files.get("curve"):
+        rows = _curve_rows(st, blocked=True)
+        n = int((rows["regime"] == "blocked").sum()) if "regime" in rows else 0
+        return f"{n} blocked point(s) left out of the curve" if n else ""
+    names = [path for path in files.get("summaries") or [] if read_json(path).get("regime") == "blocked"]
+    if files.get("summary") and read_json(files["summary"]).get("regime") == "blocked":
+        names.append(files["summary"])
+    return f"blocked case: it delivers less than half its feed ({', '.join(names)})" if names else ""
 
 
 def _compare(st, ctx) -> dict:
