@@ -152,15 +152,14 @@ def grains_3d(inp, spec, settings):
 
 def _curve_facts(table, x, group=None) -> list[str]:
     """One line per case: parameter value(s) (papers' units), pressure drop, regime, stop reason."""
-    from analysis.plots import PARAMETERS
+    from analysis.plots import parameter_value, parameter_words
     facts = []
     for _, row in table.iterrows():
         where = []
         for key in (x, group):
             if key and key in row:
-                label, factor = PARAMETERS.get(key, (key, 1.0))
-                unit = label[label.rfind("(") + 1:-1] if label.endswith(")") else ""
-                where.append(f"{key} = {row[key] * factor:g} {unit}".strip())
+                name = parameter_words(key)[0].replace("$", "").replace("\\", "")  # no TeX in text
+                where.append(f"{name} = {parameter_value(key, row[key])}")
         start = (f"warm start from {row['initial_state']}" if isinstance(row.get("initial_state"), str)
                  and row.get("initial_state") else "from an empty tube")
         window = (f"window {row['t_start']:.2f}-{row['t_end']:.2f} s" if "t_start" in row
