@@ -1,8 +1,10 @@
 """Rule detect: slugs of one case (detected, tracked) and its summary.
 
 The summary holds the case configuration (dotted keys), the sweep point, the steady pressure drop
-(Pa/m) +- its batch-means standard error and window, regime, grains in the tube (+- batch-means
-error), slug rate/velocity/length at the analysis position, and how the run stopped.
+(Pa/m) +- its batch-means standard error and window, the regime and what decides it (travel speed,
+delivered over fed mass flow), grains in the tube (+- batch-means error), at the analysis position
+the slug rate, travel speed, mean maximal granular velocity (per passage and time-weighted) and
+slug length (core and with the ends), and how the run started and stopped (analysis.curves.case_summary).
 
 Standalone:
     python workflow/scripts/detect.py --input case=results/cases/h_default/base.nc \
