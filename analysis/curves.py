@@ -19,8 +19,15 @@ from .slugs import THRESHOLD, detect
 from .statistics import slug_statistics
 from .timeseries import MIN_CORRELATION_TIMES, mean_error, mser_start
 
-BULK_FILL = 0.9  # tube "completely filled": slugs cover >= 90 % of its length (time mean)
-DILUTE_SLUG_FRACTION = 0.5  # dilute: slugs no longer hold the majority of the grains (H §3.1)
+# Regime thresholds (see regime):
+BULK_FILL = 0.9  # tube "completely filled" (H §3.1, V §4.1): slugs cover >= 90 % of its length
+# slug/plug conveying: slugs pass mid-tube at least once every 5 s (the papers' default cases pass
+# 1.2 and 3.9 per second, H §5 and V §5; a sliding layer fills the cross-section only locally)
+MIN_SLUG_RATE = 0.2  # 1/s
+# sticking plugs (V §4.1: "big plugs sticking in the tube or their motion is reduced
+# considerably"): plugs in the middle of the tube slower than the grains enter (0.04 m/s, V §4.2)
+STICKING_SPEED = 0.04  # m/s
+BLOCKED_DELIVERY = 0.5  # blocked: the tube delivers less than half of its feed over the window
 ALWAYS = ("gas.superficial_velocity", "feed.mass_flow_kg_h", "tube.inclination_deg")
 
 
@@ -99,16 +106,48 @@ def slug_fractions(ds: xr.Dataset, slugs: pd.DataFrame, t_start: float | None = 
     return {"dense_fraction": float(covered), "slug_fraction": float(slug_fraction)}
 
 
-def regime(dense_fraction: float, slug_fraction: float, vertical: bool = False,
-           bulk_fill: float = BULK_FILL, dilute_slug_fraction: float = DILUTE_SLUG_FRACTION) -> str:
-    """Transport regime: "bulk" when slugs fill the tube (dense_fraction >= bulk_fill), "dilute"
-    when slugs hold less than dilute_slug_fraction of the grains, otherwise "plug" (vertical) or
-    "slug" (horizontal)."""
+def regime(dense_fraction: float, slug_rate: float, travel_speed: float = float("nan"),
+           delivery: float = float("nan"), vertical: bool = False, stop_reason: str = "",
+           bulk_fill: float = BULK_FILL, min_slug_rate: float = MIN_SLUG_RATE,
+           sticking_speed: float = STICKING_SPEED,
+           blocked_delivery: float = BLOCKED_DELIVERY) -> str:
+    """Transport regime as the papers define it (H §3.1, §4, §5; V §4.1), from measured quantities.
+
+    dense_fraction: time mean of the tube length covered by slug cores; slug_rate (1/s): slugs
+    passing mid-tube; travel_speed (m/s): median travel speed of the slugs in the middle half of
+    the tube; delivery: delivered over fed mass flow; stop_reason: the case file's. In this order:
+    "blocked" (the run stopped blocked, or it delivers less than blocked_delivery of its feed);
+    "bulk" (slugs fill the tube: the transport comes through the enforced feed); "sticking plugs"
+    (vertical: plugs there but slower than sticking_speed); "slug" / "plug" (slugs pass mid-tube
+    at least min_slug_rate per second, whatever share of the grains rests between them); else
+    "sliding layer" (horizontal: grains slide or roll along the bottom) or "dilute" (vertical).
+    NaN quantities never satisfy a condition.
+    """
+    if stop_reason == "blocked" or delivery < blocked_delivery:
+        return "blocked"
     if dense_fraction >= bulk_fill:
         return "bulk"
-    if slug_fraction < dilute_slug_fraction:
-        return "dilute"
-    return "plug" if vertical else "slug"
+    if vertical and travel_speed < sticking_speed:
+        return "sticking plugs"
+    if slug_rate >= min_slug_rate:
+        return "plug" if vertical else "slug"
+    return "dilute" if vertical else "sliding layer"
+
+
+def travel_speed(slugs: pd.DataFrame, tube_length: float, t_start: float | None = None) -> float:
+    """Median travel speed (m/s, slug_velocity) over the frames at t >= t_start in which a slug's
+    centre lies in the middle half of the tube, away from the inlet's and outlet's boundary
+    regions (H §5: 0.05 m); NaN without such frames."""
+    t0 = -np.inf if t_start is None else t_start
+    mid = (slugs["time"] >= t0) & (np.abs(slugs["x_center"] - tube_length / 2) <= tube_length / 4)
+    v = slugs.loc[mid, "slug_velocity"].to_numpy(dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else float("nan")
+
+
+def _slope(t, values) -> float:
+    """Least-squares slope of values against t (units per s); NaN for fewer than two points."""
+    return float(np.polyfit(t, values, 1)[0]) if len(t) > 1 else float("nan")
 
 
 def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | None = None,
@@ -116,11 +155,15 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
                  slugs: pd.DataFrame | None = None) -> dict:
     """One case reduced to scalars: configuration (dotted keys) and results.
 
-    Results: steady_pressure_drop's (pressure drop and error, window t_start, t_end),
-    dense_fraction, slug_fraction, regime, slug_rate (1/s) and mean slug_velocity (m/s) and
-    length (m) at `position` (default mid-tube) with their standard errors (_sem), n_particles
-    (time mean in the window) and n_particles_sem (mean_error),
-    mass_flow_out (kg/s, slope of mass_out over the window).
+    Results: steady_pressure_drop's (pressure drop and error, its correlation time and whether it
+    converged, window t_start, t_end), dense_fraction, slug_fraction, regime (and what decides it:
+    travel_speed, m/s; delivery), at `position` (default mid-tube): slug_rate (1/s), slug_velocity
+    (m/s, travel speed of the tracked centres), max_velocity (m/s, the papers' mean maximal
+    granular velocity, per passage) and max_velocity_time (time-weighted), slug_length (core) and
+    slug_length_total (with the ends, the papers' reading; m), each with its standard error (_sem);
+    n_particles (time mean in the window) and n_particles_sem (mean_error), mass_flow_out and
+    mass_flow_in (kg/s, slopes of mass_out and mass_in over the window), mass_flow_fed (kg/s, the
+    configured feed) and stop_reason.
     """
     geo = geometry(ds)
     row = dict(config(ds)) if "config_yaml" in ds.attrs else {}
@@ -129,23 +172,35 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     slugs = detect(ds, threshold) if slugs is None else slugs
     fractions = slug_fractions(ds, slugs, t0)
     position = geo.tube_length / 2 if position is None else position
-    stats = slug_statistics(slugs, [position], t_start=t0) if len(slugs) else None
+    stats = slug_statistics(slugs, [position], t_start=t0).iloc[0] if len(slugs) else None
     t = seconds(ds["time"].values)
     window = (t >= t0) & (t <= steady["t_end"])
     row.update(steady)
     row.update(fractions)
-    row["regime"] = regime(fractions["dense_fraction"], fractions["slug_fraction"], geo.vertical)
-    row["slug_rate"] = float(stats["rate"].iloc[0]) if stats is not None else 0.0
-    row["slug_velocity"] = float(stats["slug_velocity_mean"].iloc[0]) if stats is not None else np.nan
-    row["slug_length"] = float(stats["length_mean"].iloc[0]) if stats is not None else np.nan
-    row["slug_velocity_sem"] = float(stats["slug_velocity_sem"].iloc[0]) if stats is not None else np.nan
-    row["slug_length_sem"] = float(stats["length_sem"].iloc[0]) if stats is not None else np.nan
+    nan = float("nan")
+    for key, column in (("slug_rate", "rate"), ("slug_velocity", "slug_velocity_mean"),
+                        ("slug_velocity_sem", "slug_velocity_sem"),
+                        ("max_velocity", "max_velocity_mean"), ("max_velocity_sem", "max_velocity_sem"),
+                        ("max_velocity_time", "max_velocity_time_mean"),
+                        ("max_velocity_time_sem", "max_velocity_time_sem"),
+                        ("slug_length", "length_mean"), ("slug_length_sem", "length_sem"),
+                        ("slug_length_total", "length_total_mean"),
+                        ("slug_length_total_sem", "length_total_sem")):
+        row[key] = float(stats[column]) if stats is not None else (0.0 if key == "slug_rate" else nan)
     if "n_particles" in ds:
         grains = mean_error(ds["n_particles"].values[window], sampling_interval(t),
                             row.get("run.steady_min_correlation_times", MIN_CORRELATION_TIMES))
         row["n_particles"], row["n_particles_sem"] = grains.mean, grains.error
-    if "mass_out" in ds and window.sum() > 1:
-        row["mass_flow_out"] = float(np.polyfit(t[window], ds["mass_out"].values[window], 1)[0])
+    for name in ("mass_out", "mass_in"):
+        if name in ds:
+            row[f"mass_flow_{name[5:]}"] = _slope(t[window], np.asarray(ds[name].values)[window])
+    fed = row.get("feed.mass_flow_kg_h")
+    row["mass_flow_fed"] = float(fed) / 3600 if fed is not None else nan
+    row["delivery"] = row.get("mass_flow_out", nan) / row["mass_flow_fed"] if row["mass_flow_fed"] else nan
+    row["stop_reason"] = str(ds.attrs.get("stop_reason", ""))
+    row["travel_speed"] = travel_speed(slugs, geo.tube_length, t0) if len(slugs) else nan
+    row["regime"] = regime(fractions["dense_fraction"], row["slug_rate"], row["travel_speed"],
+                           row["delivery"], geo.vertical, row["stop_reason"])
     return row
 
 
@@ -169,13 +224,16 @@ def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwar
         parameters = list(dict.fromkeys([*varying, *[c for c in ALWAYS if c in table]]))
     results = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time",
                "pressure_drop_converged", "regime", "t_start", "t_end", "window",
-               "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "slug_length",
-               "n_particles", "n_particles_sem", "mass_flow_out"]
+               "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "travel_speed",
+               "max_velocity", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
+               "mass_flow_out", "mass_flow_fed", "delivery", "stop_reason"]
     columns = ["case", *parameters, *[c for c in results if c in table]]
     out = table[columns].sort_values(list(parameters) or ["case"]).reset_index(drop=True)
     out.attrs["units"] = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s",
-                          "t_end": "s", "pressure_drop_correlation_time": "s", "slug_rate": "s-1", "slug_velocity": "m s-1",
-                          "slug_length": "m", "mass_flow_out": "kg s-1"}
+                          "t_end": "s", "pressure_drop_correlation_time": "s", "slug_rate": "s-1",
+                          "slug_velocity": "m s-1", "travel_speed": "m s-1", "max_velocity": "m s-1",
+                          "slug_length": "m", "slug_length_total": "m", "mass_flow_out": "kg s-1",
+                          "mass_flow_fed": "kg s-1", "delivery": "1"}
     return out
 
 

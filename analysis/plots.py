@@ -25,24 +25,39 @@ PARAMETERS = {  # dotted config key -> (axis label, factor from SI to the label'
     "wall.friction": (r"wall Coulomb coefficient $\mu_w$", 1.0),
     "gas.pressure": ("pressure $P_0$ (hPa)", 1.0 / HPA),
     "tube.inclination_deg": ("inclination (degree)", 1.0),
+    "feed.entry_velocity": ("grain entry velocity (m/s)", 1.0),
+    "particles.restitution": ("restitution coefficient $e$", 1.0),
+    "particles.stiffness": ("normal stiffness $k_n$ (N/m)", 1.0),
+    "numerics.time_step_fraction": (r"time step $\Delta t/t_c$", 1.0),
+    "numerics.gas_interval": ("grain steps per gas update", 1.0),
+    "gas.nodes_x": ("axial gas nodes", 1.0),
+    "run.seed": ("random seed", 1.0),
 }
 STATISTICS = {
     "rate": "{Slug} rate (1/s)",
     "min_porosity": "minimal porosity in {slug}s",
     "max_velocity": "maximal granular velocity (m/s)",
-    "length": "{slug} length (m)",
-    "slug_velocity": "{slug} velocity (m/s)",
+    "length": "{slug} core length, porosity < 0.6 (m)",
+    "length_total": "{slug} length with its ends (m)",
+    "slug_velocity": "{slug} travel speed (m/s)",
+    "front_velocity": "{slug} front speed (m/s)",
     "n_particles": "grains per {slug}",
 }
-PROFILES = {
-    "porosity": "porosity",
-    "velocity": "granular velocity (m/s)",
-    "drag_force": "force per grain (N)",
-    "particle_force": "force per grain (N)",
-    "wall_stress": "wall stress (Pa)",
-    "granular_temperature": "granular temperature (J)",
+PROFILES = {  # field -> (axis label, factor from SI to the label's unit)
+    "porosity": ("porosity", 1.0),
+    "velocity": ("granular velocity (m/s)", 1.0),
+    "drag_force": ("force per grain (µN)", 1e6),
+    "particle_force": ("force per grain (µN)", 1e6),
+    "wall_stress": ("wall stress (Pa)", 1.0),
+    "granular_temperature": ("granular temperature per grain (nJ)", 1e9),
 }
-REGIME_MARKERS = {"bulk": "s", "slug": "o", "plug": "o", "dilute": "^"}
+# Regime (analysis.curves.regime) -> marker and legend text; blocked points are not joined to the
+# curve (the tube did not deliver the feed the point is labelled with).
+REGIME_MARKERS = {"bulk": ("s", "bulk (tube filled)"), "slug": ("o", "slug conveying"),
+                  "plug": ("o", "plug conveying"), "sticking plugs": ("D", "sticking plugs"),
+                  "sliding layer": ("v", "sliding layer (no slugs)"),
+                  "dilute": ("^", "dilute (no plugs)")}
+BLOCKED = ("X", "blocked (delivers < half its feed;\nnot part of the curve)")
 
 
 def _axes(ax=None, size=(5.0, 3.5)):
@@ -113,8 +128,9 @@ def slug_profile(profile: xr.Dataset, fields="porosity", ax=None):
     fig, ax = _axes(ax)
     fields = [fields] if isinstance(fields, str) else list(fields)
     x = profile["dx_d"].values
+    label, factor = PROFILES.get(fields[0], (fields[0], 1.0))
     for name in fields:
-        mean, sem = profile[name].values, profile[f"{name}_sem"].values
+        mean, sem = profile[name].values * factor, profile[f"{name}_sem"].values * factor
         line, = ax.plot(x, mean, label=name.replace("_", " "))
         ax.fill_between(x, mean - sem, mean + sem, color=line.get_color(), alpha=0.25, lw=0)
     if "wall_stress" in fields and "resting_layer_stress" in profile:
@@ -123,7 +139,8 @@ def slug_profile(profile: xr.Dataset, fields="porosity", ax=None):
             ax.plot(x, rest, ":", color="k", label="weight of resting layer")
     axis = "z" if profile.attrs.get("vertical") else "x"
     ax.set_xlabel(rf"$\Delta {axis}/d$")
-    ax.set_ylabel(PROFILES.get(fields[0], fields[0]))
+    ax.set_ylabel(label)
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
     if len(fields) > 1 or "wall_stress" in fields:
         ax.legend(frameon=False)
     return fig
@@ -201,44 +218,138 @@ def radial_profile(profile: xr.Dataset, field: str = "porosity", ax=None):
 
 
 def characteristic_curves(table: pd.DataFrame, x: str = "gas.superficial_velocity",
-                          group: str | None = "feed.mass_flow_kg_h", ax=None):
+                          group: str | None = "feed.mass_flow_kg_h", ax=None,
+                          title: str | None = None, group_label: str | None = None):
     """Pressure drop (hPa/m, standard-error bars) against a swept parameter, one curve per group
-    value (H3, V4: against v_s for each mass flow; H5-H7, H21, V7, V8). Markers show the regime:
-    square bulk, circle slug/plug, triangle dilute. A cross marks a bulk point whose case did not
-    resolve the tangential dashpot (column `dashpot_resolved` False): a packed bed there carries a
-    time-step error (docs/performance.md, "The tangential dashpot and the time step")."""
+    value (H3, V4: against v_s for each mass flow; H5-H7, H21, V7, V8).
+
+    Markers show the regime (REGIME_MARKERS), explained in the legend. Blocked points (regime
+    "blocked") are drawn as red crosses and not joined to their curve: the tube did not deliver
+    the feed they are labelled with. A black cross marks a bulk point whose case did not resolve
+    the tangential dashpot (column `dashpot_resolved` False): a packed bed there carries a
+    time-step error (docs/performance.md, "The tangential dashpot and the time step").
+    `group_label` titles the legend of the groups (default: the group key's axis label).
+    """
     fig, ax = _axes(ax)
     label, factor = PARAMETERS.get(x, (x, 1.0))
     groups = [(None, table)] if group is None or group not in table else list(table.groupby(group))
-    flagged = False
+    glabel, gfactor = PARAMETERS.get(group, (group, 1.0)) if group else ("", 1.0)
+    unit = glabel[glabel.rfind("(") + 1:-1] if glabel.endswith(")") else ""
+    flagged, regimes = False, set()
+    group_handles = []
     for value, part in groups:
         part = part.sort_values(x)
         xs = part[x].to_numpy(dtype=float) * factor
         dp = part["pressure_drop"].to_numpy(dtype=float) / HPA
         err = part["pressure_drop_sem"].to_numpy(dtype=float) / HPA
-        glabel, gfactor = PARAMETERS.get(group, (group, 1.0)) if group else ("", 1.0)
-        unit = glabel[glabel.rfind("(") + 1:-1] if glabel.endswith(")") else ""
-        name = None if value is None else f"{value * gfactor:g} {unit}".strip()
-        line = ax.errorbar(xs, dp, yerr=err, fmt="-", capsize=2, label=name)[0]
-        if "regime" in part:
-            for regime, marker in REGIME_MARKERS.items():
-                sel = (part["regime"] == regime).to_numpy()
-                if sel.any():
-                    ax.plot(xs[sel], dp[sel], marker, color=line.get_color(), ms=4)
+        regime = part["regime"].astype(str).to_numpy() if "regime" in part else np.full(len(part), "")
+        blocked = regime == "blocked"
+        name = None if value is None else (f"{value * gfactor:g} {unit}".strip()
+                                           if isinstance(value, (int, float, np.number)) else str(value))
+        line = ax.errorbar(xs[~blocked], dp[~blocked], yerr=err[~blocked], fmt="-", capsize=2,
+                           label=name)
+        color = line[0].get_color()
+        if name is not None:
+            group_handles.append(line)
+        for key, (marker, _) in REGIME_MARKERS.items():
+            sel = regime == key
+            if sel.any():
+                ax.plot(xs[sel], dp[sel], marker, color=color, ms=5)
+                regimes.add(key)
+        if blocked.any():
+            ax.errorbar(xs[blocked], dp[blocked], yerr=err[blocked], fmt=BLOCKED[0], color="tab:red",
+                        mfc="none", ms=8, capsize=2)
+            regimes.add("blocked")
         unresolved = unresolved_bulk(part).to_numpy()
         if unresolved.any():
-            ax.plot(xs[unresolved], dp[unresolved], "x", color="k", ms=8, mew=1.2,
-                    label=None if flagged else UNRESOLVED_BULK)
+            ax.plot(xs[unresolved], dp[unresolved], "x", color="k", ms=8, mew=1.2)
             flagged = True
     ax.set_xlabel(label)
     ax.set_ylabel("pressure drop (hPa/m)")
     ax.set_ylim(bottom=0)
-    if (group is not None and len(groups) > 1) or flagged:
-        ax.legend(frameon=False, fontsize=8)
+    ax.ticklabel_format(axis="x", useOffset=False)
+    if title:
+        ax.set_title(title, fontsize=9)
+    handles = [ax.plot([], [], REGIME_MARKERS[k][0], color="0.3", ms=5, label=REGIME_MARKERS[k][1])[0]
+               for k in REGIME_MARKERS if k in regimes]
+    if "blocked" in regimes:
+        handles.append(ax.plot([], [], BLOCKED[0], color="tab:red", mfc="none", ms=8, label=BLOCKED[1])[0])
+    if flagged:
+        handles.append(ax.plot([], [], "x", color="k", ms=8, mew=1.2, label=UNRESOLVED_BULK)[0])
+    if group_handles and len(groups) > 1:
+        first = ax.legend(handles=group_handles, frameon=False, fontsize=7, loc="upper right",
+                          title=group_label or glabel, title_fontsize=7)
+        ax.add_artist(first)
+    if handles:
+        ax.legend(handles=handles, frameon=False, fontsize=7, loc="upper center", title="regime",
+                  title_fontsize=7)
     return fig
 
 
+def parameter_words(key: str) -> tuple[str, str, float]:
+    """(name in words, unit, factor from SI to that unit) of a case key, from PARAMETERS; the key
+    itself where it has no entry."""
+    label, factor = PARAMETERS.get(key, (key, 1.0))
+    if label.endswith(")") and " (" in label:
+        name, unit = label[:-1].rsplit(" (", 1)
+        return name, unit, factor
+    return label, "", factor
+
+
+def parameter_value(key: str, value) -> str:
+    """A case key's value in the papers' unit, e.g. '2.49 kg/h' or '0.067 cP'."""
+    _, unit, factor = parameter_words(key)
+    try:
+        return f"{float(value) * factor:g} {unit}".strip()
+    except (TypeError, ValueError):
+        return str(value)
+
+
+def curve_title(table: pd.DataFrame, x: str) -> str:
+    """Title in words of a curve figure: the tube and what is plotted against what."""
+    vertical = None
+    if "vertical" in table and len(table):
+        vertical = str(table["vertical"].iloc[0]).strip().lower() in ("true", "1", "1.0")
+    elif "tube.inclination_deg" in table and len(table):
+        vertical = float(table["tube.inclination_deg"].iloc[0]) >= 45.0
+    tube = {True: "Vertical tube: ", False: "Horizontal tube: ", None: ""}[vertical]
+    return f"{tube}pressure drop against the {parameter_words(x)[0]}"
+
+
 UNRESOLVED_BULK = "bulk, step not converged\n(tangential dashpot)"
+
+
+def undrawn_axes(fig) -> list[str]:
+    """Panels of `fig` that draw no data: no line, marker, collection, patch or image with a finite
+    value (legend proxies with no points do not count). Named by title, else y label, else index."""
+    empty = []
+    for k, ax in enumerate(fig.axes):
+        if not _draws_data(ax):
+            empty.append(ax.get_title() or ax.get_title(loc="left") or ax.get_ylabel() or f"panel {k + 1}")
+    return empty
+
+
+def _draws_data(ax) -> bool:
+    for line in ax.get_lines():
+        xy = np.asarray(line.get_xydata(), dtype=float)
+        if xy.size and np.isfinite(xy).all(axis=-1).any():
+            return True
+    for coll in ax.collections:
+        pts = getattr(coll, "_offsets3d", None)
+        if pts is not None:
+            if len(pts[0]):
+                return True
+            continue
+        offsets = np.asarray(coll.get_offsets(), dtype=float)
+        if len(coll.get_paths()) and (offsets.size == 0 or np.isfinite(offsets).any()):
+            if any(len(path.vertices) and np.isfinite(path.vertices).all(axis=1).any()
+                   for path in coll.get_paths()):
+                return True
+    for image in ax.images:
+        data = np.ma.filled(np.ma.asarray(image.get_array(), dtype=float), np.nan)
+        if data.size and np.isfinite(data).any():
+            return True
+    return any(p.get_visible() for p in ax.patches)
 
 
 KNOBS = {  # work-precision knobs -> legend label with unit

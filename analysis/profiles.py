@@ -14,6 +14,7 @@ import pandas as pd
 import xarray as xr
 
 from .casefile import geometry, require, seconds
+from .slugs import PAPER_LENGTH
 from .statistics import passages
 
 POSITION = 0.26  # m, papers: profiles at mid-tube
@@ -22,36 +23,45 @@ FIELDS = ("porosity", "velocity", "drag_force", "particle_force", "wall_stress",
 UNITS = {"porosity": "1", "velocity": "m s-1", "drag_force": "N", "particle_force": "N",
          "wall_stress": "Pa", "granular_temperature": "J", "resting_layer_stress": "Pa"}
 # Half-widths of the selection bands around the mean (papers): horizontal §3.2 L = 0.05 +- 0.03 m,
-# u = 0.29 +- 0.1 m/s; vertical §4.2 L = 0.024 +- 0.01 m, u = 0.16 +- 0.02 m/s.
+# u = 0.29 +- 0.1 m/s; vertical §4.2 L = 0.024 +- 0.01 m, u = 0.16 +- 0.02 m/s. The lengths are
+# the papers' slug length, with the smooth ends (slugs.PAPER_LENGTH).
 PAPER_BANDS = {"horizontal": {"length": 0.03, "velocity": 0.1},
                "vertical": {"length": 0.01, "velocity": 0.02}}
+# Top of the granular-temperature axis of the papers' averaged-profile figure (J per grain):
+# V Fig. 17 runs 0 .. 3.5e-9 J; the text extraction of H Fig. 16 keeps no axis (no check there).
+PAPER_TEMPERATURE_AXIS = {"vertical": 3.5e-9, "horizontal": None}
+FAR_OUTSIDE = 10.0  # a peak more than ten times the axis top is flagged (another order of magnitude)
 
 
 def select_slugs(slugs: pd.DataFrame, position: float = POSITION, length_band: float | None = None,
                  velocity_band: float | None = None, length_center: float | None = None,
                  velocity_center: float | None = None, velocity_column: str = "max_velocity",
-                 t_start: float | None = None, t_end: float | None = None) -> pd.DataFrame:
-    """Slugs passing `position` (m) whose length and velocity lie within a band of the mean.
+                 t_start: float | None = None, t_end: float | None = None,
+                 length_column: str = PAPER_LENGTH) -> pd.DataFrame:
+    """Slugs passing `position` (m) whose length and velocity lie within a band of the mean
+    (H §3.2, V §4.2).
 
     Bands (half-widths, m and m/s) default to the papers' for the tube orientation; centres
     default to the mean over all slugs passing the position. The velocity is `velocity_column`
-    (default the maximal granular velocity, as in the papers). One row per slug (the frame where
-    it passes); attrs record the centres and bands used.
+    (default the maximal granular velocity, as in the papers), the length `length_column`
+    (default the length with the smooth ends, the papers' reading). One row per slug (the frame
+    where it passes); attrs record the centres, bands and columns used.
     """
     bands = PAPER_BANDS["vertical" if slugs.attrs.get("vertical") else "horizontal"]
     length_band = bands["length"] if length_band is None else length_band
     velocity_band = bands["velocity"] if velocity_band is None else velocity_band
     passing = passages(slugs, [position], t_start, t_end)
     if length_center is None:
-        length_center = float(passing["length"].mean())
+        length_center = float(passing[length_column].mean())
     if velocity_center is None:
         velocity_center = float(passing[velocity_column].mean())
-    keep = ((passing["length"] - length_center).abs() <= length_band) & (
+    keep = ((passing[length_column] - length_center).abs() <= length_band) & (
         (passing[velocity_column] - velocity_center).abs() <= velocity_band)
     out = passing[keep].reset_index(drop=True)
     out.attrs.update(position=position, length_center=length_center, length_band=length_band,
                      velocity_center=velocity_center, velocity_band=velocity_band,
-                     velocity_column=velocity_column, n_passing=len(passing))
+                     velocity_column=velocity_column, length_column=length_column,
+                     n_passing=len(passing))
     return out
 
 
@@ -112,3 +122,19 @@ def slug_profiles(ds: xr.Dataset, selection: pd.DataFrame, fields=FIELDS,
                      times=np.asarray(seconds(selection["time"].to_numpy())),
                      slug_ids=selection["slug_id"].to_numpy(dtype=np.int64))
     return out
+
+
+def temperature_check(profile: xr.Dataset, vertical: bool) -> dict:
+    """Peak of the averaged granular temperature (J per grain) against the top of the papers' axis.
+
+    The engine's granular temperature is the papers' (V §4.3, H §3.3): the mean kinetic energy of
+    a slice's grains minus that of their centre-of-mass motion, per grain, 0.5 m (<v^2> - <v>^2),
+    in J. Returns peak (J), axis_top (J, None where the paper's axis is unknown), ratio
+    peak / axis_top and far_outside (ratio above FAR_OUTSIDE).
+    """
+    top = PAPER_TEMPERATURE_AXIS["vertical" if vertical else "horizontal"]
+    values = profile["granular_temperature"].values if "granular_temperature" in profile else []
+    peak = float(np.nanmax(values)) if np.isfinite(values).any() else float("nan")
+    ratio = peak / top if top else float("nan")
+    return {"peak": peak, "axis_top": top, "ratio": ratio,
+            "far_outside": bool(np.isfinite(ratio) and ratio > FAR_OUTSIDE)}

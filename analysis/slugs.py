@@ -1,10 +1,15 @@
 """Slug (plug) detection in the slice porosity and tracking from frame to frame.
 
-A slug is a contiguous run of slices with porosity below a threshold (papers: 0.6) in one frame.
-Tracking links the slugs of consecutive frames and gives each travelling slug one `slug_id`.
+A slug is a contiguous run of slices with porosity below a threshold (papers: 0.6) in one frame
+(H §3.2, V §4.2): its core. Its smooth ends (H §3, §4: "the slug edges are smooth") reach out to
+where the porosity returns to the level between slugs (END_POROSITY or the frame's median porosity
+outside slug cores, whichever is lower). Tracking links the slugs of consecutive frames and gives
+each travelling slug one `slug_id`.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pandas as pd
@@ -13,10 +18,18 @@ import xarray as xr
 from .casefile import geometry, require, seconds, slice_faces
 
 THRESHOLD = 0.6  # papers §3.2 / §4.2: porosity below 0.6 belongs to a slug
+# A slug's ends stop where the porosity reaches this or the level between slugs (the median of the
+# frame's slices outside slug cores), whichever is lower; H Fig. 12: "from 85% to 50%" at the front.
+END_POROSITY = 0.9
 
-COLUMNS = ["frame", "time", "slug_id", "x_center", "x_start", "x_end", "length", "min_porosity",
-           "max_velocity", "mean_velocity", "n_particles", "slug_velocity", "event", "merged_into",
-           "truncated"]
+COLUMNS = ["frame", "time", "slug_id", "x_center", "x_start", "x_end", "length", "x_start_total",
+           "x_end_total", "length_total", "min_porosity", "max_velocity", "mean_velocity",
+           "n_particles", "slug_velocity", "front_velocity", "event", "merged_into", "truncated"]
+# The papers' slug length (H §3 "4-8 cm", §3.2 L = 0.05 +- 0.03 m with about 470 grains; V §4
+# "2-4 cm", §4.2 L = 0.024 +- 0.01 m with about 320 grains) includes the smooth ends: 470 grains at
+# porosity 0.5 fill only 3.4 cm of the 7 mm tube, 5 cm holds them at a mean porosity of 0.65.
+# The vertical plugs' sharp edges make both lengths nearly equal there.
+PAPER_LENGTH = "length_total"
 
 
 def find_regions(porosity: np.ndarray, threshold: float = THRESHOLD):
@@ -56,6 +69,68 @@ def _crossing(phi_out, phi_in, x_out, x_in, threshold, face):
     return np.where(ok, x_out + frac * (x_in - x_out), x)
 
 
+def _next_index(mask: np.ndarray, reverse: bool) -> np.ndarray:
+    """Per (frame, slice): the nearest slice index at or after it (before it when reverse) where
+    mask holds; n_slices (or -1) where none does."""
+    n = mask.shape[1]
+    k = np.arange(n)
+    if reverse:
+        return np.maximum.accumulate(np.where(mask, k, -1), axis=1)
+    return np.minimum.accumulate(np.where(mask, k, n)[:, ::-1], axis=1)[:, ::-1]
+
+
+def end_level(phi: np.ndarray, threshold: float = THRESHOLD) -> np.ndarray:
+    """Porosity at which a slug's ends stop, per frame: END_POROSITY or the between-slug level (the
+    median porosity of the slices outside slug cores, missing counted as empty), the lower."""
+    p = np.nan_to_num(phi, nan=1.0)
+    outside = np.where(p >= threshold, p, np.nan)
+    with warnings.catch_warnings():  # a frame whose slices are all in cores: no level
+        warnings.simplefilter("ignore", RuntimeWarning)
+        level = np.nanmedian(outside, axis=1)
+    return np.fmin(END_POROSITY, level)
+
+
+def slug_ends(phi: np.ndarray, x: np.ndarray, faces: np.ndarray, frame: np.ndarray,
+              start: np.ndarray, stop: np.ndarray, threshold: float = THRESHOLD):
+    """Back and front of each region including its smooth ends (m).
+
+    Walking outwards from the core, an end lies where the porosity first reaches end_level (linear
+    between slice centres); where the next slug's core comes first, at the centre of the most
+    porous slice between the two (both slugs end there); at the tube face where neither comes.
+    """
+    p = np.nan_to_num(phi, nan=1.0)
+    n = p.shape[1]
+    level = end_level(phi, threshold)
+    below = p < threshold
+    done = (p >= level[:, None] - 1e-9) | below  # 1e-9: a level met to rounding counts
+    nxt, prv = _next_index(done, reverse=False), _next_index(done, reverse=True)
+    x_hi = np.full(frame.size, faces[-1], dtype=np.float64)
+    x_lo = np.full(frame.size, faces[0], dtype=np.float64)
+    for side, out in ((+1, x_hi), (-1, x_lo)):
+        first = stop if side > 0 else start - 1  # the first slice outside the core
+        inside_tube = (first < n) & (first >= 0)
+        f, a = frame[inside_tube], first[inside_tube]
+        j = (nxt if side > 0 else prv)[f, a]
+        found = (j < n) & (j >= 0)
+        rows = np.nonzero(inside_tube)[0]
+        jj = np.clip(j, 0, n - 1)
+        prev = np.clip(jj - side, 0, n - 1)  # the slice before the stop, going outwards
+        crossing = found & ~below[f, jj]
+        lv = level[f]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            frac = (lv - p[f, prev]) / (p[f, jj] - p[f, prev])
+        xc = x[prev] + frac * (x[jj] - x[prev])
+        out[rows[crossing]] = xc[crossing]
+        for r, fr, lo_k, hi_k in zip(rows[found & ~crossing], f[found & ~crossing],
+                                     np.minimum(a, jj)[found & ~crossing],
+                                     np.maximum(a, jj)[found & ~crossing]):
+            gap = p[fr, lo_k:hi_k + 1]
+            gap_x = x[lo_k:hi_k + 1]
+            inner = ~below[fr, lo_k:hi_k + 1]
+            out[r] = gap_x[inner][np.argmax(gap[inner])]
+    return x_lo, x_hi
+
+
 def _linear_moments(xa, sa, xb, sb):
     """Integrals of s and s*x over [xa, xb] for s linear from sa (at xa) to sb (at xb)."""
     h = xb - xa
@@ -65,8 +140,9 @@ def _linear_moments(xa, sa, xb, sb):
 def measure_regions(ds: xr.Dataset, threshold: float = THRESHOLD) -> pd.DataFrame:
     """Per region and frame: position (m), length (m), min porosity, max/mean velocity (m/s), grains.
 
-    `x_start`/`x_end` are the threshold crossings (linear between slice centres, the tube face where
-    the region touches the inlet or outlet); `length` = x_end - x_start. The solid fraction
+    `x_start`/`x_end` (core) are the threshold crossings (linear between slice centres, the tube face where
+    the region touches the inlet or outlet); `length` = x_end - x_start. `x_start_total`,
+    `x_end_total` and `length_total` include the smooth ends (slug_ends). The solid fraction
     1 - porosity, linear between slice centres (constant beyond the last centre at a tube face), is
     integrated from x_start to x_end: `n_particles` = A * integral / grain volume and `x_center`
     is its centre of mass; both change continuously as a slug moves across the slices.
@@ -114,6 +190,7 @@ def measure_regions(ds: xr.Dataset, threshold: float = THRESHOLD) -> pd.DataFram
     with np.errstate(invalid="ignore", divide="ignore"):
         x_center = moment / integral
         mean_velocity = mv / m
+    x_start_total, x_end_total = slug_ends(phi, x, faces, frame, start, stop, threshold)
     return pd.DataFrame({
         "frame": frame.astype(np.int64),
         "time": t[frame],
@@ -121,6 +198,9 @@ def measure_regions(ds: xr.Dataset, threshold: float = THRESHOLD) -> pd.DataFram
         "x_start": x_start,
         "x_end": x_end,
         "length": x_end - x_start,
+        "x_start_total": x_start_total,
+        "x_end_total": x_end_total,
+        "length_total": x_end_total - x_start_total,
         "min_porosity": min_phi,
         "max_velocity": max_vel,
         "mean_velocity": mean_velocity,
@@ -211,10 +291,14 @@ def assign_ids(n_regions: int, i: np.ndarray, j: np.ndarray, overlap: np.ndarray
     return ids, event, merged_into
 
 
-def slug_velocity(slugs: pd.DataFrame) -> np.ndarray:
-    """Slug velocity (m/s) from the tracked centres of mass, aligned with the rows of `slugs`.
+def slug_velocity(slugs: pd.DataFrame, column: str = "x_center") -> np.ndarray:
+    """Slug travel velocity (m/s) from a tracked position (default the centre of mass; `x_end`:
+    the front), aligned with the rows of `slugs`.
 
-    Central difference of x_center over the neighbouring frames of the same slug; one-sided where
+    The speed at which slugs travel, as read from the papers' spatio-temporal images (H §3: "slug
+    velocity 0.42 m/s"; V §4: "plug velocity 2.4 m/s", read as 0.24 m/s): a slug collecting resting
+    grains at its front and leaving them at its back travels faster than its grains.
+    Central difference of the position over the neighbouring frames of the same slug; one-sided where
     only one neighbour continues the slug unchanged (event "moved"); NaN for single frames, across
     merges and splits (the centre of mass jumps there) and where the slug touches the inlet or the
     outlet (the centre of mass of a truncated slug does not move with it).
@@ -222,7 +306,7 @@ def slug_velocity(slugs: pd.DataFrame) -> np.ndarray:
     order = np.lexsort((slugs["frame"].to_numpy(), slugs["slug_id"].to_numpy()))
     sid = slugs["slug_id"].to_numpy()[order]
     t = slugs["time"].to_numpy()[order]
-    xc = slugs["x_center"].to_numpy()[order]
+    xc = slugs[column].to_numpy()[order]
     whole = ~slugs["truncated"].to_numpy(dtype=bool)[order]
     moved = slugs["event"].to_numpy()[order] == "moved"
     n = len(sid)
@@ -245,9 +329,12 @@ def detect(ds: xr.Dataset, threshold: float = THRESHOLD, margin: float = 0.0) ->
     """Slugs in every frame of a case file, tracked from frame to frame.
 
     One row per slug and frame, columns: frame, time (s), slug_id, x_center (centre of mass, m),
-    x_start, x_end (threshold crossings, m), length (m), min_porosity, max_velocity (m/s, largest
-    slice velocity in the slug), mean_velocity (m/s, solid-weighted), n_particles (solid volume /
-    grain volume), slug_velocity (m/s, from the tracked centres), event (born, moved, merged,
+    x_start, x_end (threshold crossings, m), length (m, the core), x_start_total, x_end_total,
+    length_total (m, with the smooth ends; the papers' slug length, PAPER_LENGTH), min_porosity,
+    max_velocity (m/s, largest slice velocity in the slug: the papers' "maximal granular velocity",
+    H §3.2, V §4.2), mean_velocity (m/s, solid-weighted), n_particles (solid volume / grain volume
+    of the core), slug_velocity and front_velocity (m/s, travel speed from the tracked centre and
+    front), event (born, moved, merged,
     split), merged_into (id of the slug that absorbs this one in the next frame, else -1) and
     truncated (the slug touches the inlet or the outlet).
     `margin` (slices) widens the frame-to-frame linking window. attrs hold threshold, dt (s),
@@ -266,6 +353,7 @@ def detect(ds: xr.Dataset, threshold: float = THRESHOLD, margin: float = 0.0) ->
     regions["event"] = event
     regions["merged_into"] = merged_into
     regions["slug_velocity"] = slug_velocity(regions) if len(regions) else np.empty(0)
+    regions["front_velocity"] = slug_velocity(regions, "x_end") if len(regions) else np.empty(0)
     slugs = regions[COLUMNS].reset_index(drop=True)
     slugs.attrs.update(threshold=threshold, dt=dt, time_first=float(t[0]), time_last=float(t[-1]),
                        tube_length=geo.tube_length, particle_diameter=geo.particle_diameter,

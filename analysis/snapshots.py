@@ -265,3 +265,38 @@ def averaged_radial_profile(ds: xr.Dataset, selection: pd.DataFrame, slugs: pd.D
     out.attrs.update(slug_ids=np.asarray(used, dtype=np.int64), particle_diameter=geo.particle_diameter,
                      ring_width=profiles[0].attrs["ring_width"], height=profiles[0].attrs["height"])
     return out
+
+
+def slug_in_snapshots(ds: xr.Dataset, slugs: pd.DataFrame, prefer=()) -> tuple[int, pd.Series] | None:
+    """The snapshot and slug to picture (H2): (snapshot index, the slug's row at that frame).
+
+    Among the slugs whose frame coincides with a snapshot (within half a frame), those whose
+    whole length with the ends (x_start_total .. x_end_total) holds the most snapshot grains win;
+    slugs with an id in `prefer` (the profile selection) first, when any of them holds grains.
+    None when no slug holds any grain of any snapshot.
+    """
+    times = snapshot_times(ds)
+    if not len(slugs) or not times.size:
+        return None
+    dt = float(slugs.attrs.get("dt", np.median(np.diff(np.unique(slugs["time"])))
+                               if slugs["time"].nunique() > 1 else 0.01))
+    k = np.clip(np.searchsorted(times, slugs["time"].to_numpy()), 1, times.size - 1)
+    k = np.where(np.abs(times[k - 1] - slugs["time"].to_numpy()) <= np.abs(times[k] - slugs["time"].to_numpy()),
+                 k - 1, k)
+    at_shot = np.abs(times[k] - slugs["time"].to_numpy()) <= dt / 2 + 1e-9
+    lo_col = "x_start_total" if "x_start_total" in slugs else "x_start"
+    hi_col = "x_end_total" if "x_end_total" in slugs else "x_end"
+    count = np.asarray(ds["snapshot_count"].values, dtype=np.int64)
+    first = np.concatenate([[0], np.cumsum(count)])
+    x_all = np.asarray(ds["snapshot_position"].values[:, 0], dtype=np.float64)
+    lo, hi = slugs[lo_col].to_numpy(dtype=np.float64), slugs[hi_col].to_numpy(dtype=np.float64)
+    counts = np.zeros(len(slugs), dtype=np.int64)
+    for row in np.nonzero(at_shot)[0]:
+        x = x_all[first[k[row]]:first[k[row] + 1]]
+        counts[row] = int(np.count_nonzero((x >= lo[row]) & (x <= hi[row])))
+    if counts.max(initial=0) == 0:
+        return None
+    preferred = slugs["slug_id"].isin(list(prefer)).to_numpy() & (counts > 0)
+    pool = np.nonzero(preferred)[0] if preferred.any() else np.nonzero(counts > 0)[0]
+    best = int(pool[np.argmax(counts[pool])])
+    return int(k[best]), slugs.iloc[best]

@@ -3,7 +3,10 @@
 A slug passes position x when its tracked centre of mass moves from below x to x or beyond between
 two consecutive frames. The slug rate at x is the net number of passages (forward minus backward)
 per second; each slug passing x contributes one sample (its first forward passage, taken from the
-frame whose centre of mass is nearer to x) to the mean, standard error and quartiles at x.
+frame whose centre of mass is nearer to x) to the mean, standard error and quartiles at x: the
+papers' statistics (H §3.2 and V §4.2: "at each value of x, the mean ... and its uncertainty
+(standard deviation divided by the square root of the number of slugs)"). The time-weighted mean
+(time_weighted) counts every frame a slug spends near x instead, so slow slugs weigh more.
 """
 
 from __future__ import annotations
@@ -11,7 +14,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-QUANTITIES = ("min_porosity", "max_velocity", "length", "slug_velocity", "n_particles")
+QUANTITIES = ("min_porosity", "max_velocity", "length", "length_total", "slug_velocity",
+              "front_velocity", "n_particles")
+TIME_WEIGHTED = ("max_velocity", "slug_velocity")  # also reported time-weighted (q_time_mean)
 
 
 def describe(values) -> dict[str, float]:
@@ -83,6 +88,28 @@ def passages(slugs: pd.DataFrame, positions, t_start: float | None = None,
     return rows.sort_values(["position", "time"]).reset_index(drop=True)
 
 
+def time_weighted(slugs: pd.DataFrame, position: float, quantity: str, half_width: float,
+                  t_start: float | None = None, t_end: float | None = None) -> dict[str, float]:
+    """Mean of `quantity` over every frame in [t_start, t_end] whose slug centre lies within
+    half_width (m) of `position` (m): each slug weighs by the time it spends there.
+
+    Returns n_frames, n_slugs, mean and sem; the sem treats slugs as independent clusters of
+    correlated frames (ratio estimator: sqrt(sum (s_i - mean n_i)^2 k / (k - 1)) / sum n_i over
+    the k slugs with n_i frames summing to s_i).
+    """
+    lo, hi = _window(slugs, t_start, t_end)
+    near = (np.abs(slugs["x_center"] - position) <= half_width) & (slugs["time"] >= lo) & (
+        slugs["time"] <= hi) & np.isfinite(slugs[quantity])
+    g = slugs.loc[near].groupby("slug_id")[quantity]
+    n_i, s_i = g.count().to_numpy(float), g.sum().to_numpy(float)
+    k, n = len(n_i), n_i.sum()
+    if n == 0:
+        return dict(n_frames=0, n_slugs=0, mean=np.nan, sem=np.nan)
+    mean = s_i.sum() / n
+    sem = np.sqrt(np.sum((s_i - mean * n_i) ** 2) * k / (k - 1)) / n if k > 1 else np.nan
+    return dict(n_frames=int(n), n_slugs=k, mean=float(mean), sem=float(sem))
+
+
 def slug_statistics(slugs: pd.DataFrame, positions=None, t_start: float | None = None,
                     t_end: float | None = None, quantities=QUANTITIES) -> pd.DataFrame:
     """Slug rate and statistics of slug properties at each position (one row per position).
@@ -90,8 +117,10 @@ def slug_statistics(slugs: pd.DataFrame, positions=None, t_start: float | None =
     Columns: x (m), n_slugs (slugs passing forward), rate (1/s, net passages per second),
     rate_sem (1/s, Poisson sqrt(n)/duration), and for each quantity q: q_mean, q_sem (std/sqrt(n),
     ddof=1), q_q25, q_median, q_q75 ("half of the slugs lie between" q_q25 and q_q75).
-    Units follow the quantity: porosity 1, velocities m/s, length m. The time window defaults to
-    the whole run; attrs keep duration (s), t_start, t_end.
+    Units follow the quantity: porosity 1, velocities m/s, length m. For the quantities in
+    TIME_WEIGHTED also q_time_mean, q_time_sem (time_weighted, over the bin around x: half the
+    spacing of the positions, or of the default bins for one position). The time window defaults
+    to the whole run; attrs keep duration (s), t_start, t_end.
     """
     if positions is None:
         positions = default_positions(slugs.attrs["tube_length"])
@@ -101,6 +130,9 @@ def slug_statistics(slugs: pd.DataFrame, positions=None, t_start: float | None =
     cross = crossings(slugs, positions, lo, hi)
     net = cross.groupby("position")["direction"].sum().reindex(positions, fill_value=0)
     samples = passages(slugs, positions, lo, hi)
+    spacing = np.min(np.diff(np.sort(positions))) if positions.size > 1 else np.nan
+    half = spacing / 2 if np.isfinite(spacing) and spacing > 0 else float(
+        default_positions(slugs.attrs.get("tube_length", 0.525))[0])
     groups = dict(tuple(samples.groupby("position")))
     rows = []
     for p in positions:
@@ -110,6 +142,10 @@ def slug_statistics(slugs: pd.DataFrame, positions=None, t_start: float | None =
         for q in quantities:
             d = describe(sample[q]) if q in sample else describe([])
             row.update({f"{q}_{k}": d[k] for k in ("mean", "sem", "q25", "median", "q75")})
+        for q in TIME_WEIGHTED:
+            w = time_weighted(slugs, p, q, half, lo, hi) if q in slugs else dict(mean=np.nan,
+                                                                                   sem=np.nan)
+            row.update({f"{q}_time_mean": w["mean"], f"{q}_time_sem": w["sem"]})
         rows.append(row)
     out = pd.DataFrame(rows)
     out.attrs.update(duration=duration, t_start=lo, t_end=hi, vertical=slugs.attrs.get("vertical"))

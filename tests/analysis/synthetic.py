@@ -137,13 +137,14 @@ def build(slugs: list[Slug], duration: float = 4.0, inclination_deg: float = 0.0
     phi, vel, shape = fields(times, slugs)
     grains = ((1 - phi) * DX).sum(axis=1) * A_TUBE / V_GRAIN
     cfg = case_config(inclination_deg, **config)
+    feed = cfg["feed"]["mass_flow_kg_h"] / 3600  # kg/s, delivered once the tube has filled (2 s)
     ds = xr.Dataset(
         {
             "pressure_drop": ("time", pressure_signal(times, pressure_drop * L_TUBE, rho=0.8, seed=seed),
                               {"units": "Pa", "long_name": "inlet minus outlet pressure"}),
             "n_particles": ("time", np.round(grains), {"units": "1", "long_name": "grains in the tube"}),
-            "mass_in": ("time", times * 2.49 / 3600, {"units": "kg"}),
-            "mass_out": ("time", np.maximum(times - 2.0, 0) * 2.49 / 3600, {"units": "kg"}),
+            "mass_in": ("time", times * feed, {"units": "kg"}),
+            "mass_out": ("time", np.maximum(times - 2.0, 0) * feed, {"units": "kg"}),
             "kinetic_energy": ("time", np.zeros(times.size), {"units": "J"}),
             "max_overlap": ("time", np.full(times.size, 0.01), {"units": "1"}),
             "porosity": (("time", "x"), phi, {"units": "1", "long_name": "slice porosity"}),

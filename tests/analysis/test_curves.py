@@ -9,7 +9,7 @@ from analysis import (case_summary, mean_error, mser_start, regime, steady_press
                       sweep_table)
 from analysis import curves
 from analysis.casefile import seconds
-from analysis.curves import BULK_FILL, DILUTE_SLUG_FRACTION
+from analysis.curves import BLOCKED_DELIVERY, BULK_FILL, MIN_SLUG_RATE, STICKING_SPEED
 
 from . import synthetic as S
 
@@ -49,20 +49,45 @@ def test_steady_pressure_drop_in_pa_per_metre_with_an_explicit_window():
 
 
 def test_regime_rule_thresholds():
-    assert regime(BULK_FILL, 1.0) == "bulk"
-    assert regime(BULK_FILL - 0.01, DILUTE_SLUG_FRACTION) == "slug"
-    assert regime(BULK_FILL - 0.01, DILUTE_SLUG_FRACTION - 0.01) == "dilute"
-    assert regime(0.3, 0.8, vertical=True) == "plug"
+    nan = float("nan")
+    below, at = MIN_SLUG_RATE * 0.99, MIN_SLUG_RATE
+    assert regime(BULK_FILL, 0.0) == "bulk"
+    assert regime(BULK_FILL - 0.01, at) == "slug"
+    assert regime(BULK_FILL - 0.01, below) == "sliding layer"
+    assert regime(0.1, below, vertical=True) == "dilute"
+    assert regime(0.3, 1.0, 0.2, vertical=True) == "plug"
+    # slug conveying whatever share of the grains rests between the slugs (no share is an input)
+    assert regime(0.05, 1.2, 0.42) == "slug"
+    # sticking: vertical plugs slower than the grains enter; horizontal slow slugs stay slugs
+    assert regime(0.5, 0.0, STICKING_SPEED * 0.99, vertical=True) == "sticking plugs"
+    assert regime(0.5, 1.0, STICKING_SPEED, vertical=True) == "plug"
+    assert regime(0.5, 1.0, STICKING_SPEED * 0.99) == "slug"
+    # blocked: the run says so, or under BLOCKED_DELIVERY of the feed leaves; before bulk
+    assert regime(1.0, 0.0, nan, BLOCKED_DELIVERY * 0.99) == "blocked"
+    assert regime(1.0, 0.0, nan, BLOCKED_DELIVERY) == "bulk"
+    assert regime(0.3, 1.0, 0.3, 1.0, stop_reason="blocked") == "blocked"
+    assert regime(0.3, 1.0, nan, nan) == "slug"  # unknown delivery and speed decide nothing
 
 
-@pytest.mark.parametrize("slugs, inclination, expected", [
-    ([S.moving(1.0, 0.04, 2.0)], 0.0, "bulk"),  # one dense column over the whole tube
-    (S.periodic(0.75, 0.3, 0.05, 10.0), 0.0, "slug"),
-    (S.periodic(0.75, 0.3, 0.05, 10.0), 90.0, "plug"),
-    (S.periodic(0.75, 0.3, 0.006, 10.0), 0.0, "dilute"),  # 6 mm slugs hold ~10 % of the grains
+def _blocked(ds):
+    """The same case, but nothing leaves the tube."""
+    return ds.assign(mass_out=ds["mass_out"] * 0.0)
+
+
+@pytest.mark.parametrize("make, inclination, expected", [
+    (lambda: S.build([S.moving(1.0, 0.04, 2.0)], 10.0), 0.0, "bulk"),  # a dense column fills it
+    (lambda: S.build(S.periodic(0.75, 0.3, 0.05, 10.0), 10.0), 0.0, "slug"),
+    (lambda: S.build(S.periodic(0.75, 0.3, 0.05, 10.0), 10.0, inclination_deg=90.0), 90.0, "plug"),
+    # 6 mm slugs hold ~10 % of the grains, yet they form and travel: slug conveying
+    (lambda: S.build(S.periodic(0.75, 0.3, 0.006, 10.0), 10.0), 0.0, "slug"),
+    (lambda: S.build([], 10.0), 0.0, "sliding layer"),  # no slugs at all
+    (lambda: S.build([], 10.0, inclination_deg=90.0), 90.0, "dilute"),
+    (lambda: S.build([S.moving(0.3, 0.0, 0.05)], 10.0, inclination_deg=90.0), 90.0,
+     "sticking plugs"),
+    (lambda: _blocked(S.build(S.periodic(0.75, 0.3, 0.05, 10.0), 10.0)), 0.0, "blocked"),
 ])
-def test_regime_of_synthetic_cases(slugs, inclination, expected):
-    summary = case_summary(S.build(slugs, 10.0, inclination_deg=inclination))
+def test_regime_of_synthetic_cases(make, inclination, expected):
+    summary = case_summary(make())
     assert summary["regime"] == expected
 
 
@@ -72,6 +97,12 @@ def test_case_summary_reports_the_known_slug_numbers():
     assert summary["slug_rate"] == pytest.approx(1 / 0.75, abs=1 / 10.0)
     assert summary["slug_velocity"] == pytest.approx(0.3, rel=5e-4)  # see test_slugs
     assert summary["slug_length"] == pytest.approx(0.05, abs=1e-9)
+    ends = 2 * S.RAMP * (S.PHI_GAP - S.THRESHOLD) / (S.PHI_GAP - S.PHI_SLUG)  # see test_slugs
+    assert 0.05 + ends <= summary["slug_length_total"] <= 0.05 + ends + 3 * S.DX
+    assert summary["max_velocity"] == pytest.approx(0.3, abs=1e-12)
+    assert summary["max_velocity_time"] == pytest.approx(0.3, abs=1e-12)
+    assert summary["travel_speed"] == pytest.approx(0.3, rel=5e-3)
+    assert summary["delivery"] == pytest.approx(1.0, rel=1e-9)  # mass_out rises at the feed rate
     # slugs cover length/spacing = 0.05 / 0.225 of the tube, +- one slug's part at the ends
     assert summary["dense_fraction"] == pytest.approx(0.05 / 0.225, abs=0.05 / S.L_TUBE)
     assert summary["gas.superficial_velocity"] == 1.0

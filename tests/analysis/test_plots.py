@@ -38,7 +38,9 @@ def test_statistics_plots_have_error_bars_and_dotted_quartiles(default_slugs):
     dotted = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
     assert len(dotted) == 2
     assert np.allclose(dotted[0].get_ydata(), stats["length_q25"])
-    assert ax.get_ylabel() == "slug length (m)" and ax.get_xlabel() == "x (m)"
+    assert ax.get_ylabel() == "slug core length, porosity < 0.6 (m)" and ax.get_xlabel() == "x (m)"
+    ax = plots.slug_statistic(stats, "length_total").axes[0]
+    assert ax.get_ylabel() == "slug length with its ends (m)"
     fig = plots.slug_rate(stats)
     assert fig.axes[0].get_ylabel() == "Slug rate (1/s)"
     assert saved(fig)
@@ -56,8 +58,14 @@ def test_profile_plots(default_case, default_slugs):
     prof = slug_profiles(default_case, select_slugs(default_slugs))
     fig = plots.slug_profile(prof, ["drag_force", "particle_force"])
     ax = fig.axes[0]
-    assert ax.get_ylabel() == "force per grain (N)" and ax.get_xlabel() == r"$\Delta x/d$"
+    assert ax.get_ylabel() == "force per grain (µN)" and ax.get_xlabel() == r"$\Delta x/d$"
     assert len(ax.get_lines()) == 2
+    assert np.allclose(ax.get_lines()[0].get_ydata(), prof["drag_force"].values * 1e6, equal_nan=True)
+    ax = plots.slug_profile(prof, "granular_temperature").axes[0]
+    assert ax.get_ylabel() == "granular temperature per grain (nJ)"
+    assert np.nanmax(ax.get_lines()[0].get_ydata()) == pytest.approx(S.TEMPERATURE_PEAK * 1e9)
+    ax.figure.canvas.draw()  # no offset exponent: the tick labels carry the numbers themselves
+    assert ax.yaxis.get_offset_text().get_text() == ""
     ax = plots.slug_profile(prof, "wall_stress").axes[0]
     dotted = [line for line in ax.get_lines() if line.get_linestyle() == ":"]
     assert len(dotted) == 1  # the weight of the resting layer (H15)
@@ -94,7 +102,9 @@ def test_characteristic_curves_in_hpa_per_metre():
     ax = fig.axes[0]
     assert ax.get_ylabel() == "pressure drop (hPa/m)"
     assert ax.get_xlabel() == "superficial gas velocity $v_s$ (m/s)"
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["2.49 kg/h", "9.95 kg/h"]
+    texts = legend_texts(ax)
+    assert texts[0] == ["2.49 kg/h", "9.95 kg/h"]  # the groups, titled in words
+    assert texts[1] == ["bulk (tube filled)", "slug conveying"]  # every marker explained
     assert np.allclose(ax.get_lines()[0].get_ydata(), [30.0, 10.0])  # Pa/m -> hPa/m
     viscosity = pd.DataFrame({"gas.viscosity": [4.5e-5, 8.5e-5], "pressure_drop": [1200.0, 900.0],
                               "pressure_drop_sem": [10.0, 10.0]})
@@ -112,12 +122,50 @@ def test_bulk_points_with_an_unresolved_dashpot_are_crossed():
         # the bulk point at 0.25 m/s is resolved
         "dashpot_resolved": ["False", "True", "False", "False"]})
     ax = plots.characteristic_curves(table, group=None).axes[0]
-    crosses = [line for line in ax.get_lines() if line.get_marker() == "x"]
+    crosses = [line for line in ax.get_lines() if line.get_marker() == "x" and len(line.get_xdata())]
     assert len(crosses) == 1 and np.allclose(crosses[0].get_xydata(), [[0.15, 90.0]])
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == [plots.UNRESOLVED_BULK]
-    table["dashpot_resolved"] = [True, True, None, None]  # resolved, or unknown: no cross, no legend
+    assert plots.UNRESOLVED_BULK in legend_texts(ax)[-1]
+    table["dashpot_resolved"] = [True, True, None, None]  # resolved, or unknown: no cross, no entry
     ax = plots.characteristic_curves(table, group=None).axes[0]
-    assert not [line for line in ax.get_lines() if line.get_marker() == "x"] and ax.get_legend() is None
+    assert not [line for line in ax.get_lines() if line.get_marker() == "x" and len(line.get_xdata())]
+    assert plots.UNRESOLVED_BULK not in legend_texts(ax)[-1]
+
+
+def legend_texts(ax):
+    """Texts of every legend of the axes, in the order drawn."""
+    from matplotlib.legend import Legend
+    return [[t.get_text() for t in c.get_texts()] for c in ax.get_children() if isinstance(c, Legend)]
+
+
+def test_blocked_points_are_drawn_apart_and_explained():
+    table = pd.DataFrame({
+        "gas.superficial_velocity": [0.3, 0.5, 1.0, 2.0], "pressure_drop": [9000.0, 7000.0, 1000.0, 800.0],
+        "pressure_drop_sem": [50.0] * 4, "regime": ["blocked", "sticking plugs", "plug", "dilute"]})
+    ax = plots.characteristic_curves(table, group=None, title="Vertical tube").axes[0]
+    curve = ax.get_lines()[0]  # the joined curve leaves the blocked point out
+    assert np.allclose(curve.get_xdata(), [0.5, 1.0, 2.0])
+    crosses = [line for line in ax.get_lines() if line.get_marker() == "X" and len(line.get_xdata())]
+    assert len(crosses) == 1 and np.allclose(crosses[0].get_xydata(), [[0.3, 90.0]])
+    texts = legend_texts(ax)[-1]
+    assert texts[:3] == ["plug conveying", "sticking plugs", "dilute (no plugs)"]
+    assert texts[3].startswith("blocked") and ax.get_title() == "Vertical tube"
+
+
+def test_undrawn_axes_names_empty_panels():
+    fig = Figure()
+    full, empty = fig.subplots(1, 2)
+    full.plot([0, 1], [1, 2])
+    empty.plot([], [], "o", label="proxy")  # a legend proxy is no data
+    empty.set_title("nothing here")
+    assert plots.undrawn_axes(fig) == ["nothing here"]
+    nan = Figure().add_subplot()
+    nan.plot([0, 1], [np.nan, np.nan])
+    assert plots.undrawn_axes(nan.figure) == ["panel 1"]
+    scatter = Figure().add_subplot(projection="3d")
+    scatter.scatter([], [], [])
+    assert plots.undrawn_axes(scatter.figure) == ["panel 1"]
+    scatter.scatter([0.0], [0.0], [0.0])
+    assert plots.undrawn_axes(scatter.figure) == []
 
 
 def test_plots_draw_into_a_given_axes(default_slugs):

@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 
 from analysis import detect, resting_layer_stress, select_slugs, slug_profiles
-from analysis.profiles import PAPER_BANDS
+from analysis.profiles import FAR_OUTSIDE, PAPER_BANDS, temperature_check
 
 from . import synthetic as S
 
@@ -21,13 +22,32 @@ def two_lengths():
 
 def test_selection_band_around_the_mean(two_lengths):
     _, slugs = two_lengths
-    everything = select_slugs(slugs)  # papers' horizontal band: 0.05 +- 0.03 m, u +- 0.1 m/s
+    # papers' horizontal band: 0.05 +- 0.03 m, u +- 0.1 m/s; here on the core length
+    everything = select_slugs(slugs, length_column="length")
     assert everything.attrs["length_center"] == pytest.approx(0.05, abs=0.003)
     assert len(everything) == everything.attrs["n_passing"] > 10
-    assert len(select_slugs(slugs, length_band=0.015)) == 0  # both populations 0.02 from the mean
-    short = select_slugs(slugs, length_center=0.03, length_band=0.005)
+    assert len(select_slugs(slugs, length_band=0.015, length_column="length")) == 0  # both 0.02 off
+    short = select_slugs(slugs, length_center=0.03, length_band=0.005, length_column="length")
     assert len(short) > 0 and np.allclose(short["length"], 0.03, atol=1e-9)
     assert len(select_slugs(slugs, velocity_center=0.5, velocity_band=0.1)) == 0
+
+
+def test_selection_uses_the_length_with_the_ends_by_default(two_lengths):
+    _, slugs = two_lengths
+    sel = select_slugs(slugs)
+    assert sel.attrs["length_column"] == "length_total"
+    # each end adds the ramp from porosity 0.6 to 0.9 (14 mm) and at most 1.5 slices (see test_slugs)
+    ends = 2 * S.RAMP * (S.PHI_GAP - S.THRESHOLD) / (S.PHI_GAP - S.PHI_SLUG)
+    assert 0.05 + ends <= sel.attrs["length_center"] <= 0.05 + ends + 3 * S.DX
+
+
+def test_temperature_check_flags_a_peak_far_above_the_papers_axis():
+    prof = xr.Dataset({"granular_temperature": ("dx_d", np.array([0.0, 3e-9, 1e-9]))})
+    ok = temperature_check(prof, vertical=True)
+    assert ok["peak"] == 3e-9 and ok["axis_top"] == 3.5e-9 and not ok["far_outside"]
+    hot = temperature_check(prof * (FAR_OUTSIDE * 3.5e-9 / 3e-9 * 1.01), vertical=True)
+    assert hot["far_outside"] and hot["ratio"] == pytest.approx(FAR_OUTSIDE * 1.01)
+    assert not temperature_check(prof * 1e3, vertical=False)["far_outside"]  # no axis known
 
 
 def test_vertical_tubes_use_the_vertical_paper_band():

@@ -8,7 +8,8 @@ import pytest
 from analysis import (averaged_radial_profile, cross_section, cross_section_series, detect,
                       radial_profile, select_slugs, snapshot, velocity_by_height,
                       velocity_height_series)
-from analysis.snapshots import ball_points, time_average_by_height
+from analysis.snapshots import (ball_points, slug_in_snapshots, snapshot, snapshot_times,
+                                time_average_by_height)
 
 from . import synthetic as S
 
@@ -123,3 +124,22 @@ def test_averaged_radial_profile_is_centred_on_each_slug():
     assert np.allclose(prof["velocity"].values[r < 0.5], 0.3)
     assert np.allclose(prof["porosity"].values[r > 0.5], 1.0)
     assert np.allclose(prof["porosity_sem"].values, 0.0, atol=1e-12)  # identical slugs
+
+
+def test_the_slug_to_picture_lies_in_a_snapshot(default_case, default_slugs):
+    # H2 must show a slug: the synthetic snapshots (9.9-10.4 s, grains over 0.2425-0.2825 m) see
+    # one 5 cm slug pass mid-tube at 9.95 s; slugs elsewhere in the tube hold none of their grains
+    k, row = slug_in_snapshots(default_case, default_slugs)
+    t = snapshot_times(default_case)[k]
+    assert 9.9 <= t <= 10.4 and abs(row["time"] - t) < 0.006
+    assert row["x_start_total"] < 0.2825 and row["x_end_total"] > 0.2425
+    _, pos, _ = snapshot(default_case, k)
+    inside = (pos[:, 0] >= row["x_start_total"]) & (pos[:, 0] <= row["x_end_total"])
+    assert inside.sum() > 300  # most of the 600 grains
+    # a preferred slug that never meets a snapshot does not win over one that does
+    elsewhere = default_slugs[default_slugs["time"] < 5.0]["slug_id"].unique()
+    assert slug_in_snapshots(default_case, default_slugs, prefer=elsewhere)[1]["slug_id"] == row["slug_id"]
+    # and no slug in any snapshot: nothing to picture
+    early = default_slugs[default_slugs["time"] < 5.0]
+    early.attrs.update(default_slugs.attrs)
+    assert slug_in_snapshots(default_case, early) is None

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from analysis import describe, detect, passages, slug_statistics
-from analysis.statistics import crossings, default_positions
+from analysis.statistics import crossings, default_positions, time_weighted
 
 from . import synthetic as S
 
@@ -87,3 +87,22 @@ def test_window_restricts_the_rate_and_the_samples(random_lengths):
 def test_default_positions_are_bin_centres():
     p = default_positions(0.525)
     assert len(p) == 30 and p[0] == pytest.approx(0.00875) and p[-1] == pytest.approx(0.51625)
+
+
+def test_per_passage_and_time_weighted_means_of_slow_and_fast_slugs():
+    # one slug at a time, alternately at 0.2 and 0.4 m/s: each passage counts once in the papers'
+    # mean (0.3 m/s), while a slow slug spends twice the frames near x in the time-weighted one:
+    # (2 x 0.2 + 0.4) / 3 = 0.267 m/s
+    slugs = [S.moving(0.0, 0.2 if k % 2 == 0 else 0.4, 0.05, t0=3.5 * k, t1=3.5 * (k + 1))
+             for k in range(6)]
+    table = detect(S.build(slugs, 21.0))
+    x = S.L_TUBE / 2
+    row = slug_statistics(table, [x]).iloc[0]
+    assert row["n_slugs"] == 6
+    assert row["max_velocity_mean"] == pytest.approx(0.3, abs=1e-12)
+    # frames within half a bin (8.75 mm) of x: 8.75 per slow and 4.375 per fast slug, each count
+    # rounded to a whole frame (+- 1): the mean moves by at most ~0.2 / 13 = 0.015 m/s
+    assert row["max_velocity_time_mean"] == pytest.approx(0.8 / 3, abs=0.015)
+    w = time_weighted(table, x, "max_velocity", S.L_TUBE / 60)
+    assert w["n_slugs"] == 6 and w["mean"] == row["max_velocity_time_mean"]
+    assert w["sem"] > 0

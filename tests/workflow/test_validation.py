@@ -115,3 +115,59 @@ def test_bulk_points_with_an_unresolved_dashpot_are_noted_not_judged_otherwise(t
            "files": {"summaries": [str(summary)]}, "value": 90.0, "tolerance": 10.0, "unit": "hPa/m"}
     row = validation.compare(one, {})
     assert row["within"] == "yes" and "1 bulk point(s)" in row["note"]
+
+
+def test_travel_speed_and_grain_velocity_are_separate_statements(tmp_path):
+    # slugs travelling at 0.42 m/s whose grains move at 0.29 m/s (H §3 and §3.2)
+    from analysis import detect
+    from tests.analysis import synthetic as S
+
+    slugs = [S.Slug(front=lambda t, k=k: 0.42 * (t - 0.75 * k), length=lambda t: np.full_like(t, 0.05),
+                    speed=lambda t: np.full_like(t, 0.29)) for k in range(-2, 14)]
+    table = detect(S.build(slugs, 10.0))
+    write_table(table, tmp_path / "slugs.csv")
+    (tmp_path / "summary.json").write_text('{"t_start": 0.0}')
+    files = {"slugs": str(tmp_path / "slugs.csv"), "summary": str(tmp_path / "summary.json")}
+    base = {"id": "T", "paper": "H", "source": "test", "statement": "test", "measure": "slug_stat",
+            "position": "analysis", "unit": "m/s", "files": files, "case_names": []}
+    ctx = {"position": 0.26}
+    travel = validation.compare({**base, "quantity": "slug_velocity", "value": 0.42,
+                                 "tolerance": 0.04}, ctx)
+    assert travel["within"] == "yes" and travel["ours"] == pytest.approx(0.42, rel=2e-3)
+    grains = validation.compare({**base, "quantity": "max_velocity", "value": 0.42,
+                                 "tolerance": 0.04}, ctx)
+    assert grains["within"] == "no" and grains["ours"] == pytest.approx(0.29, rel=1e-9)
+    assert grains["note"].startswith("time-weighted 0.29")
+
+
+def test_every_slug_statement_names_a_measured_quantity():
+    import yaml
+
+    from analysis.statistics import QUANTITIES
+
+    statements = yaml.safe_load((ROOT / "resources" / "paper_statements.yaml").read_text())
+    ids = {st["id"] for st in statements}
+    assert {"H-travel-mid", "V-travel-mid", "V-temperature"} <= ids
+    for st in statements:
+        if st["measure"] == "slug_stat":
+            assert st["quantity"] in QUANTITIES, st["id"]
+        if "length" in st.get("quantity", ""):
+            assert st["quantity"] == "length_total", st["id"]  # the papers' reading, with the ends
+
+
+def test_blocked_points_are_left_out_of_a_curve_and_noted(tmp_path):
+    v = np.array([0.15, 0.25, 0.5, 0.75, 1.0])
+    table = pd.DataFrame({"gas.superficial_velocity": v,
+                          "pressure_drop": 100.0 * np.array([5.0, 70, 20, 12, 10.0]),
+                          "pressure_drop_sem": 50.0,
+                          "regime": ["blocked", "bulk", "slug", "slug", "slug"]})
+    path = tmp_path / "vs.csv"
+    write_table(table, path)
+    spec = {"regime": "bulk", "value": 0.3, "tolerance": 0.1, "unit": "m/s"}
+    row = validation.compare(statement(str(path), "transition", key="gas.superficial_velocity", **spec), {})
+    # the blocked 0.15 m/s point is not the curve's first point: the transition lies at 0.375
+    assert row["ours"] == pytest.approx(0.375) and "1 blocked point(s) left out" in row["note"]
+    # with it, the low blocked pressure drop would make the curve rise first; left out it falls
+    row = validation.compare(statement(str(path), "trend", key="gas.superficial_velocity",
+                                       expected="decreasing", unit="-"), {})
+    assert row["ours"] == "decreasing" and row["within"] == "yes"

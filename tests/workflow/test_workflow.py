@@ -316,6 +316,13 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
         assert (work / f"results/figures/{fig}.pdf").read_bytes().startswith(b"%PDF")
         caption = (work / f"results/figures/{fig}.txt").read_text()
         assert caption.startswith(f"{fig}:") and "tube L =" in caption, fig
+        # every figure draws data (figure.drawn_check: no empty panel, no snapshot window
+        # without grains)
+        assert "- check: every panel draws data" in caption and "EMPTY" not in caption, (fig, caption)
+    h02 = (work / "results/figures/H02.txt").read_text()
+    assert "no slug in any snapshot" not in h02 and " grains in the " in h02  # H02 shows a slug
+    assert "validation H-u-mid" in (work / "results/figures/H10.txt").read_text()  # ours vs paper
+    assert "warm start from results/cases/" in (work / "results/figures/H03.txt").read_text()
     config = yaml.safe_load((work / "config/config.yaml").read_text())
     for sweep, spec in config["sweeps"].items():
         if spec.get("parameters"):
@@ -324,7 +331,7 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     validation = pd.read_csv(work / "results/validation/validation.csv")
     assert set(validation["within"]) <= {"yes", "no", "not available"}
     assert len(validation) == len(yaml.safe_load((work / "resources/paper_statements.yaml").read_text()))
-    with xr.open_dataset(work / "results/cases/h_default/base.nc") as ds:
+    with xr.open_dataset(next((work / "results/cases/h_default").glob("*.nc"))) as ds:
         assert "snapshot_position" in ds  # snapshots where profiles are drawn ...
     for case in (work / "results/cases/h_vs").glob("*.nc"):
         with xr.open_dataset(case) as ds:
@@ -345,6 +352,7 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     assert report.returncode == 0, report.stderr[-3000:]
     html = (work / "report.html").read_text(errors="replace")
     assert "validation.csv" in html and "H01.png" in html
+    assert "Reduced run" in html and "Paper run" not in html  # the CI config shortens every case
     # the committed reference copy is regenerated from the same outputs
     # the target first: --configfile takes several values
     ref = snakemake("reference", "--cores", "1", "--configfile", "config/ci.yaml", cwd=work)

@@ -239,8 +239,15 @@ def wc_key(wildcards):
 
 # ---- captions and run-time estimates ------------------------------------------------------------
 
-def case_text(case):
-    """The parameters of a case in the papers' units, for figure captions."""
+def start_text(key):
+    """How the case (sweep, point) starts: from an empty tube or from another case's final grains."""
+    src = WARM_SOURCE.get(CANONICAL.get(key, key)) or WARM_SOURCE.get(key)
+    return f"from the final grains of case {src[0]}/{src[1]}" if src else "from an empty tube"
+
+
+def case_text(case, key=None):
+    """The parameters of a case in the papers' units, for figure captions; `key` (sweep, point)
+    says how it starts."""
     orient = {0.0: "horizontal", 90.0: "vertical"}.get(float(case["tube.inclination_deg"]),
                                                         f"inclined {case['tube.inclination_deg']:g} deg")
     parts = [f"{orient} tube L = {case['tube.length'] * 100:g} cm, D = {case['tube.diameter'] * 1e3:g} mm",
@@ -255,7 +262,7 @@ def case_text(case):
     else:
         parts.append("gas off")
     parts.append(("until steady, at most " if case["run.until_steady"] else "run ")
-                 + f"{case['run.duration']:g} s from an empty tube")
+                 + f"{case['run.duration']:g} s" + (f" {start_text(key)}" if key else ""))
     return "; ".join(parts)
 
 
@@ -269,7 +276,15 @@ def sweep_text(sweep):
     text = f"sweep {sweep} ({len(POINTS[sweep])} cases): {swept or 'single case'}"
     if tied:
         text += f" ({tied})"
-    return text + f". Other parameters as in the first case: {case_text(first)}"
+    warm = [p for p in POINTS[sweep] if (sweep, p) in WARM_SOURCE]
+    if not warm:
+        starts = "every case starts from an empty tube"
+    elif len(warm) == len(POINTS[sweep]):
+        starts = "every case starts from the final grains of another case (named per point below)"
+    else:
+        starts = (f"{len(warm)} of {len(POINTS[sweep])} cases start from the final grains of another "
+                  f"case ({', '.join(warm)}), the others from an empty tube")
+    return text + f". Other parameters as in the first case: {case_text(first)}; {starts}"
 
 
 def runtime_minutes(wildcards, attempt=1):
@@ -330,7 +345,15 @@ def figure_inputs(wildcards):
         inputs["snapshots"] = snapshot_file(*cases[0], what)
     elif kind == "radial":
         inputs["radial"] = snapshot_file(*cases[0], "radial")
+    if any(fig in _figures_of(st) for st in STATEMENTS):
+        inputs["validation"] = "results/validation/validation.csv"  # its statements go in the caption
     return inputs
+
+
+def _figures_of(st):
+    """Figures that show a statement's quantity (its `figure`: a name or a list)."""
+    figs = st.get("figure") or []
+    return [figs] if isinstance(figs, str) else list(figs)
 
 
 def figure_caption(wildcards):
@@ -338,7 +361,7 @@ def figure_caption(wildcards):
     spec = FIGURES[wildcards.fig]
     lines = [f"{wildcards.fig}: {spec.get('title', spec['kind'])}."]
     for s, p in figure_cases(wildcards.fig):
-        lines.append(f"Case {s}/{p}: {case_text(CASES[(s, p)])}.")
+        lines.append(f"Case {s}/{p}: {case_text(CASES[(s, p)], (s, p))}.")
     for s in figure_sweeps(wildcards.fig):
         lines.append(f"Curve {sweep_text(s)}.")
     return "\n".join(lines)

@@ -11,19 +11,20 @@ from _helpers import read_table, save_figure, setup_logging, snakemake_or_cli
 
 def main(smk) -> None:
     setup_logging(smk)
-    from analysis.plots import characteristic_curves
+    from analysis.plots import characteristic_curves, curve_title, parameter_value, parameter_words
 
     table = read_table(smk.input.table)
     parameters = list(smk.params.parameters or [])
     x = parameters[0]
-    group = None
+    group, group_label = None, None
     if len(parameters) > 1:
         group = parameters[1] if len(parameters) == 2 else "parameters"
-        if group == "parameters":
-            table[group] = table[parameters[1:]].astype(str).agg(", ".join, axis=1)
-    fig = characteristic_curves(table, x=x, group=group)
-    fig.axes[0].set_title(smk.wildcards.get("sweep", "") if hasattr(smk.wildcards, "get") else "",
-                          fontsize=9)
+        group_label = ", ".join(parameter_words(k)[0] for k in parameters[1:])
+        if group == "parameters":  # the further parameters in words, e.g. "2.49 kg/h, 0.16 m/s"
+            table[group] = table[parameters[1:]].apply(
+                lambda row: ", ".join(parameter_value(k, row[k]) for k in parameters[1:]), axis=1)
+    fig = characteristic_curves(table, x=x, group=group, title=curve_title(table, x),
+                                group_label=group_label)
     save_figure(fig, smk.output.png)
 
 

@@ -1,8 +1,11 @@
 """Rule detect: slugs of one case (detected, tracked) and its summary.
 
 The summary holds the case configuration (dotted keys), the sweep point, the steady pressure drop
-(Pa/m) +- its standard error (analysis.timeseries.mean_error) and window, regime, grains in the
-tube (+- the same error), slug rate/velocity/length at the analysis position, and how the run stopped.
+(Pa/m) +- its standard error (analysis.timeseries.mean_error) and window, the regime and what
+decides it (travel speed, delivered over fed mass flow), grains in the tube (+- the same error), at
+the analysis position the slug rate, travel speed, mean maximal granular velocity (per passage and
+time-weighted) and slug length (core and with the ends), and how the run started and stopped
+(analysis.curves.case_summary).
 
 Standalone:
     python workflow/scripts/detect.py --input case=results/cases/h_default/base.nc \
@@ -30,6 +33,7 @@ def main(smk) -> None:
                     "parameters": smk.params.get("parameters") or {},
                     "case_file": str(smk.input.case),
                     "stop_reason": ds.attrs.get("stop_reason", ""),
+                    "initial_state": str(ds.attrs.get("initial_state", "")),  # warm start from
                     "wall_time_s": float(ds.attrs.get("wall_time_s", float("nan"))),
                     "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
                     "time_step": float(ds.attrs.get("time_step", float("nan"))),

@@ -58,12 +58,21 @@ def _window_facts(ds, t_range) -> str:
     both = grains.converged and dp.converged
     text = (f"shown: t = {t_range[0]:.2f}-{t_range[1]:.2f} s; on average {_value(grains, '.0f', both)} "
             f"grains in the tube and a pressure drop of {_value(dp, '.3g', both)} hPa/m over this window")
-    return text if both else text + " (no standard errors: it covers too few correlation times)"
+    text = text if both else text + " (no standard errors: it covers too few correlation times)"
+    return f"{text}; {_start_text(ds)}"
 
 
 def _value(est, spec: str, with_error: bool) -> str:
     """'mean +- standard error' or the mean alone."""
     return f"{est.mean:{spec}} +- {est.error:.2g}" if with_error else f"{est.mean:{spec}}"
+
+
+def _start_text(ds) -> str:
+    """How the case file says its run started and stopped."""
+    a = ds.attrs
+    start = (f"warm start from {a['initial_state']} ({int(a.get('initial_particles', 0))} grains)"
+             if a.get("initial_state") else "started from an empty tube")
+    return f"{start}; stopped: {a.get('stop_reason', 'unknown')}"
 
 
 # ---- one function per kind: (inputs, spec, analysis settings) -> (Figure, [facts]) ------------
@@ -91,9 +100,11 @@ def porosity_image_pair(inp, spec, settings):
 
 
 def grains_3d(inp, spec, settings):
-    """H2: the grains of a slug as spheres (a 3-D scatter), coloured by axial velocity."""
+    """H2: the grains of a slug as spheres (a 3-D scatter), coloured by axial velocity. The snapshot
+    and slug are those where a slug of the profile selection (else any slug) holds the most grains
+    of the snapshots (analysis.snapshots.slug_in_snapshots), so the stretch drawn shows a slug."""
     from analysis.casefile import geometry
-    from analysis.snapshots import snapshot, snapshot_times
+    from analysis.snapshots import slug_in_snapshots, snapshot, snapshot_times
     ds = _case(inp.case)
     geo = geometry(ds)
     selection = read_table(inp.selection)
@@ -101,18 +112,20 @@ def grains_3d(inp, spec, settings):
     times = snapshot_times(ds)
     stretch = float(settings.get("grains_stretch", 0.113))
     facts = []
-    if len(selection):
-        row = selection.iloc[0]
-        k = int(np.argmin(np.abs(times - row["time"])))
-        track = slugs[slugs["slug_id"] == row["slug_id"]].sort_values("time")
-        center = float(np.interp(times[k], track["time"], track["x_center"]))
-        facts.append(f"slug {int(row['slug_id'])} at t = {times[k]:.2f} s, centre x = {center:.3f} m, "
-                     f"about {row['n_particles']:.0f} grains")
+    chosen = slug_in_snapshots(ds, slugs, selection["slug_id"] if len(selection) else ())
+    if chosen is not None:
+        k, row = chosen
+        center = float(row["x_center"])
+        picked = "of the profile selection" if len(selection) and row["slug_id"] in set(
+            selection["slug_id"]) else "not in the profile selection (none of those is in a snapshot)"
+        facts.append(f"slug {int(row['slug_id'])} ({picked}) at t = {times[k]:.2f} s, centre x = "
+                     f"{center:.3f} m, length with its ends {row.get('length_total', float('nan')) * 100:.1f} cm, "
+                     f"about {row['n_particles']:.0f} grains in its core")
     else:
         k = len(times) - 1
         _, pos, _ = snapshot(ds, k)
         center = float(np.mean(pos[:, 0])) if len(pos) else geo.tube_length / 2
-        facts.append(f"no slug selected in this run: last snapshot (t = {times[k]:.2f} s)")
+        facts.append(f"no slug in any snapshot of this run: last snapshot (t = {times[k]:.2f} s)")
     _, pos, vel = snapshot(ds, k)
     inside = np.abs(pos[:, 0] - center) <= stretch / 2
     pos, vel = pos[inside], vel[inside]
@@ -139,34 +152,44 @@ def grains_3d(inp, spec, settings):
 
 def _curve_facts(table, x, group=None) -> list[str]:
     """One line per case: parameter value(s) (papers' units), pressure drop, regime, stop reason."""
-    from analysis.plots import PARAMETERS
+    from analysis.plots import parameter_value, parameter_words
     facts = []
     for _, row in table.iterrows():
         where = []
         for key in (x, group):
             if key and key in row:
-                label, factor = PARAMETERS.get(key, (key, 1.0))
-                unit = label[label.rfind("(") + 1:-1] if label.endswith(")") else ""
-                where.append(f"{key} = {row[key] * factor:g} {unit}".strip())
+                name = parameter_words(key)[0].replace("$", "").replace("\\", "")  # no TeX in text
+                where.append(f"{name} = {parameter_value(key, row[key])}")
+        start = (f"warm start from {row['initial_state']}" if isinstance(row.get("initial_state"), str)
+                 and row.get("initial_state") else "from an empty tube")
+        window = (f"window {row['t_start']:.2f}-{row['t_end']:.2f} s" if "t_start" in row
+                  and "t_end" in row else "")
+        delivered = (f"delivers {row['delivery']:.0%} of its feed" if "delivery" in row
+                     and np.isfinite(float(row["delivery"])) else "")
+        detail = ", ".join(str(v) for v in (row["regime"], delivered, row.get("stop_reason", ""),
+                                            window, start) if isinstance(v, str) and v)
         facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g} +- "
-                     f"{row['pressure_drop_sem'] / HPA:.2g} hPa/m ({row['regime']}, "
-                     f"{row.get('stop_reason', '')})")
+                     f"{row['pressure_drop_sem'] / HPA:.2g} hPa/m ({detail})")
     return facts
 
 
 def curve(inp, spec, settings):
     from analysis.plots import characteristic_curves
+    from analysis.plots import curve_title
     table = read_table(_list(inp.tables)[0])
     x, group = spec["x"], spec.get("group")
-    fig = characteristic_curves(table, x=x, group=group)
+    fig = characteristic_curves(table, x=x, group=group, title=curve_title(table, x))
     facts = _curve_facts(table, x, group)
     if inp.get("experiment"):
         exp = experiment_table(inp.experiment)
         ax = fig.axes[0]
-        ax.errorbar(exp["superficial_velocity"], exp["pressure_drop_hPa_m"],
-                    yerr=exp["pressure_drop_err_hPa_m"], fmt="ks", ms=4, capsize=2,
-                    label="experiment (table 1)")
-        ax.legend(frameon=False, fontsize=8)
+        points = ax.errorbar(exp["superficial_velocity"], exp["pressure_drop_hPa_m"],
+                             yerr=exp["pressure_drop_err_hPa_m"], fmt="ks", ms=4, capsize=2)
+        old = ax.get_legend()  # the regimes' legend: the experiment joins it
+        handles = list(old.legend_handles) if old else []
+        labels = [t.get_text() for t in old.get_texts()] if old else []
+        ax.legend(handles=[*handles, points], labels=[*labels, "experiment (table 1)"],
+                  frameon=False, fontsize=7, loc="upper center", title="regime", title_fontsize=7)
         facts.append("experiment (V table 1): " + "; ".join(
             f"series {r.series}: {r.air_flow_l_min} l/min = {r.superficial_velocity:.3f} m/s, "
             f"{r.pressure_drop_hPa_m} +- {r.pressure_drop_err_hPa_m} hPa/m at {r.granulate_flow_kg_h} kg/h"
@@ -191,7 +214,9 @@ def curve_pair(inp, spec, settings):
     facts = []
     for label, ax, path in zip("abcdef", np.atleast_1d(axes), tables):
         table = read_table(path)
-        characteristic_curves(table, x=spec["x"], group=spec.get("group"), ax=ax)
+        from analysis.plots import curve_title
+        characteristic_curves(table, x=spec["x"], group=spec.get("group"), ax=ax,
+                              title=curve_title(table, spec["x"]))
         ax.set_title(f"({label})", loc="left", fontsize=9)
         facts += [f"({label}) {f}" for f in _curve_facts(table, spec["x"], spec.get("group"))]
     return fig, facts
@@ -230,9 +255,17 @@ def profile(inp, spec, settings):
     a = prof.attrs
     facts = [f"averaged over {n} of {a.get('n_passing', 0)} slugs passing x = {a.get('position', float('nan')):g} m "
              f"with length {a.get('length_center', float('nan')):.3g} +- {a.get('length_band', float('nan')):g} m "
-             f"and maximal velocity {a.get('velocity_center', float('nan')):.3g} +- "
+             f"(with its ends) and maximal granular velocity {a.get('velocity_center', float('nan')):.3g} +- "
              f"{a.get('velocity_band', float('nan')):g} m/s; about {a.get('mean_n_particles', float('nan')):.0f} "
              "grains per slug; bands are +- one standard error across slugs"]
+    if "granular_temperature" in spec.get("fields", []):
+        from analysis.profiles import FAR_OUTSIDE, temperature_check
+        check = temperature_check(prof, bool(a.get("vertical", 0)))
+        if check["axis_top"]:
+            facts.append(f"peak granular temperature {check['peak'] * 1e9:.3g} nJ per grain, "
+                         f"{check['ratio']:.2g} times the top of the paper's axis "
+                         f"({check['axis_top'] * 1e9:g} nJ)"
+                         + (f": FAR OUTSIDE (more than {FAR_OUTSIDE:g} times)" if check["far_outside"] else ""))
     if n == 0:
         note(fig, "no slugs selected in this run")
     return fig, facts
@@ -285,10 +318,62 @@ KINDS = {f.__name__: f for f in (porosity_image, porosity_image_pair, grains_3d,
                                   velocity_height_image, velocity_height, radial)}
 
 
+def drawn_check(fig, inp) -> str:
+    """One caption line: every panel draws data, or which do not (analysis.plots.undrawn_axes),
+    and for snapshot figures whether the window holds grains."""
+    from analysis.plots import undrawn_axes
+    problems = [f"panel without data: {name}" for name in undrawn_axes(fig)]
+    if inp.get("snapshots"):
+        with xr.open_dataset(inp.snapshots) as ds:
+            if "grain_volume" in ds and not float(ds["grain_volume"].sum()) > 0:
+                problems.append("snapshot window without grains")
+    if problems:
+        return "check: EMPTY: " + "; ".join(problems)
+    return "check: every panel draws data"
+
+
+def validation_facts(path, fig: str) -> list[str]:
+    """The validation statements shown by this figure: ours against the paper's, with the verdict."""
+    import pandas as pd
+    table = pd.read_csv(path, keep_default_na=False)
+    if "figure" not in table:
+        return []
+    rows = table[table["figure"].astype(str).str.split().apply(lambda figs: fig in figs)]
+    facts = []
+    for r in rows.itertuples():
+        if r.within == "not available":
+            facts.append(f"validation {r.id} ({r.statement}): not available ({r.note}); the paper's "
+                         f"{r.paper_value} ({r.source})")
+            continue
+        ours = _number(r.ours, r.ours_error, r.unit)
+        facts.append(f"validation {r.id} ({r.statement}): ours {ours} against the paper's "
+                     f"{r.paper_value} ({r.source}): within tolerance: {r.within}"
+                     + (f" ({r.note})" if r.note else ""))
+    return facts
+
+
+def _number(value, error, unit) -> str:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if not math.isfinite(v):
+        return "-"
+    unit = "" if unit in ("1", "-") else f" {unit}"
+    try:
+        e = float(error)
+    except (TypeError, ValueError):
+        e = float("nan")
+    return f"{v:.4g}" + (f" +- {e:.2g}" if math.isfinite(e) else "") + unit
+
+
 def main(smk) -> None:
     log = setup_logging(smk)
     spec = dict(smk.params.spec)
     fig, facts = KINDS[spec["kind"]](smk.input, spec, dict(smk.params.get("analysis") or {}))
+    if smk.input.get("validation"):
+        facts += validation_facts(smk.input.validation, str(getattr(smk.wildcards, "fig", "")))
+    facts.append(drawn_check(fig, smk.input))
     save_figure(fig, smk.output.png, smk.output.pdf)
     text = [str(smk.params.get("caption") or ""), *[f"- {f}" for f in facts],
             "Inputs: " + ", ".join(str(p) for p in smk.input)]

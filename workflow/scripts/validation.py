@@ -20,7 +20,7 @@ from analysis import curves
 from _helpers import ensure_parent, read_json, read_table, setup_logging, snakemake_or_cli
 
 TO_UNIT = {"hPa/m": 0.01, "Pa/m": 1.0, "m/s": 1.0, "m": 1.0, "cm": 100.0, "1": 1.0, "1/s": 1.0,
-           "Pa": 1.0, "r/d": 1.0}
+           "Pa": 1.0, "r/d": 1.0, "J": 1.0}
 NAN = float("nan")
 
 
@@ -79,11 +79,17 @@ def _stats_at(st, ctx):
 
 
 def slug_stat(st, ctx):
+    """Mean over the slugs passing the position (the papers' per-passage statistics); for the
+    velocities the note gives the time-weighted mean too."""
     row = _stats_at(st, ctx)
     q = st["quantity"]
     if not row["n_slugs"]:
         raise NotMeasurable("no slug passed the position")
-    return row[f"{q}_mean"], row[f"{q}_sem"], "sem"
+    note = ""
+    if f"{q}_time_mean" in row and math.isfinite(row[f"{q}_time_mean"]):
+        note = (f"time-weighted {row[f'{q}_time_mean']:.4g} +- {row[f'{q}_time_sem']:.2g} "
+                f"{st.get('unit', '')} (per passage is the papers' reading)")
+    return row[f"{q}_mean"], row[f"{q}_sem"], "sem", note
 
 
 def slug_rate(st, ctx):
@@ -125,11 +131,15 @@ def selection_mean(st, ctx):
     return float(np.mean(values)), sem, "sem"
 
 
-def _curve_rows(st, within=False):
-    """The sweep's curve at `where`, sorted by `x`; with within=True only x in `within`."""
+def _curve_rows(st, within=False, blocked=False):
+    """The sweep's curve at `where`, sorted by `x`; with within=True only x in `within`. Blocked
+    points (regime "blocked": the tube did not deliver the feed the point is labelled with) are no
+    part of the curve and left out, unless blocked=True."""
     table = read_table(st["files"]["curve"])
     for key, value in (st.get("where") or {}).items():
         table = table[np.isclose(table[key].astype(float), float(value))]
+    if not blocked and "regime" in table:
+        table = table[table["regime"] != "blocked"]
     if within:
         lo, hi = st.get("within", [-np.inf, np.inf])
         table = table[(table[st["x"]] >= lo) & (table[st["x"]] <= hi)]
@@ -250,6 +260,12 @@ def _unresolved_bulk(st) -> int:
     return count
 
 
+def _figures(st) -> list[str]:
+    """The paper figures that show the statement's quantity (its `figure`: a name or a list)."""
+    figs = st.get("figure") or []
+    return [figs] if isinstance(figs, str) else [str(f) for f in figs]
+
+
 def compare(st, ctx) -> dict:
     """The statement's row; its note names the bulk points among the inputs that carry a time-step
     error (docs/performance.md, "The tangential dashpot and the time step")."""
@@ -257,7 +273,22 @@ def compare(st, ctx) -> dict:
     if st.get("files") and (n := _unresolved_bulk(st)):
         row["note"] = "; ".join(filter(None, [row["note"], f"{n} bulk point(s) in its data carry a "
                                               "time-step error (tangential dashpot not resolved)"]))
+    if st.get("files") and (blocked := _blocked(st)):
+        row["note"] = "; ".join(filter(None, [row["note"], blocked]))
     return row
+
+
+def _blocked(st) -> str:
+    """Note on blocked inputs: curve points left out, or a case that is blocked itself."""
+    files = st["files"]
+    if files.get("curve"):
+        rows = _curve_rows(st, blocked=True)
+        n = int((rows["regime"] == "blocked").sum()) if "regime" in rows else 0
+        return f"{n} blocked point(s) left out of the curve" if n else ""
+    names = [path for path in files.get("summaries") or [] if read_json(path).get("regime") == "blocked"]
+    if files.get("summary") and read_json(files["summary"]).get("regime") == "blocked":
+        names.append(files["summary"])
+    return f"blocked case: it delivers less than half its feed ({', '.join(names)})" if names else ""
 
 
 def _compare(st, ctx) -> dict:
@@ -266,7 +297,7 @@ def _compare(st, ctx) -> dict:
            "justification": " ".join(str(st.get("justification", "")).split()),
            "cases": ", ".join(c for c in st.get("case_names") or [] if c) or st.get("sweep", ""),
            "ours": NAN, "ours_error": NAN, "error_kind": "", "ratio": NAN, "within": "",
-           "note": ""}
+           "note": "", "figure": " ".join(_figures(st))}
     if not st.get("files"):
         why = ("not run yet (partial validation: its case or curve is not produced)" if st.get("pending")
                else "the case or sweep is not in this configuration")
