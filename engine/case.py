@@ -171,7 +171,7 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Take the tangential dashpots' action on a grain's own spin implicitly, so that a packed bed's "
         "spins do not chatter when gamma_t dt/(m/7) > 0.47 (false: the papers' explicit law, whose "
         "packed beds then carry a time-step error); the split of a sticking impulse between spin "
-        "and translation is then not exact (docs/decisions/0005-implicit-spin-kick.md).", kind=bool),
+        "and translation is then not exact (docs/decisions/0006-implicit-spin-kick.md).", kind=bool),
     Key("numerics.time_step_safety", 0.6, "1",
         "Fraction of the single-pair stability limit a time step may reach: packed columns have "
         "faster modes than one pair (docs/decisions/0002-time-step-safety-margin.md); 1 accepts the "
