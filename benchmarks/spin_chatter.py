@@ -15,7 +15,7 @@ spins and the velocities, the fraction of reversed increments (successive increm
 with a negative dot product; a smooth signal sampled s steps per oscillation reverses at most 2/s
 of them) and the rms value.
 
-The work-precision study's bulk bed (docs/performance.md, "Why the bulk bed depends on the step"):
+The work-precision study's bulk bed (docs/decisions/0005-packed-bed-dashpot-condition.md):
 
     python benchmarks/spin_chatter.py config/cases/horizontal.yaml \\
         --initial-state results/cases/wp_bulk_fill/base.nc \\

@@ -108,8 +108,8 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Tangential viscous coefficient gamma_t of F_t = -min(mu|F_n|, gamma_t|v_t|); sets how fast "
         "slowly slipping contacts creep. Used as min(gamma_t, m/(7 dt)) between grains and "
         "min(gamma_t, 2m/(7 dt)) at the wall, so that the explicit dashpot cannot reverse a slip "
-        "(above gamma_t at the default step, 8.94 us). A packed bed is resolved only for "
-        "gamma_t dt/(m/7) <= 0.47 (0.93 at the defaults: the run warns; docs/performance.md).",
+        "(the cap lies above gamma_t at the default step). A packed bed needs gamma_t dt/(m/7) <= "
+        "0.47 or numerics.implicit_spin (docs/performance.md).",
         low=0.0, high=1e3),
     Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
         low=0.0, high=10.0),
@@ -169,14 +169,13 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         low=0.0, low_open=True, high=10.0),
     Key("numerics.implicit_spin", True, "",
         "Take the tangential dashpots' action on a grain's own spin implicitly, so that a packed bed's "
-        "spins do not chatter when gamma_t dt/(m/7) > 0.47 (the bulk bed at 0.15 t_c then follows 0.05 "
-        "t_c; false: the papers' explicit law, 0.15 t_c 40 % off in the bulk bed); the split of a "
-        "sticking impulse between spin and translation is not exact (a grain set rolling on the floor "
-        "ends 19 % fast at the defaults; docs/performance.md).", kind=bool),
+        "spins do not chatter when gamma_t dt/(m/7) > 0.47 (false: the papers' explicit law, whose "
+        "packed beds then carry a time-step error); the split of a sticking impulse between spin "
+        "and translation is then not exact (docs/decisions/0006-implicit-spin-kick.md).", kind=bool),
     Key("numerics.time_step_safety", 0.6, "1",
         "Fraction of the single-pair stability limit a time step may reach: packed columns have "
-        "faster modes than one pair (the stress sweep, docs/performance.md, stops packed columns "
-        "with overlaps past 0.2 d from 0.73 of the pair limit, 0.35 t_c); 1 accepts the pair limit itself.",
+        "faster modes than one pair (docs/decisions/0002-time-step-safety-margin.md); 1 accepts the "
+        "pair limit itself.",
         low=0.0, low_open=True, high=1.0),
     Key("numerics.neighbor_skin", 0.3, "1",
         "Verlet skin of the neighbour list, as a fraction of d (the list is rebuilt when a grain has "

@@ -110,8 +110,7 @@ class ContactModel:
         # at any dt (tests/engine/test_grains.py). Below the cap (dt < (m/7)/gamma_t = 9.6 us for
         # the default grains) the law is the papers' unchanged. The implicit spin kick would let a
         # lone pair go to gamma_t dt/m = 0.184 without reversing, but a packed bed then chatters
-        # from 0.175 t_c (11 % of spin increments reversed, against 1 % at this cap; docs/performance.md,
-        # "Time step 0.2 t_c with the implicit kick"), so both kicks keep it.
+        # from 0.175 t_c (docs/decisions/0007-time-step-0.2-tc-rejected.md), so both kicks keep it.
         gamma_pair = min(gamma_t, mass / 7.0 / dt)
         gamma_wall = min(gamma_t, 2.0 * mass / 7.0 / dt)
         if dt > stable:

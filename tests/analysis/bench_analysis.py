@@ -2,7 +2,7 @@
 
 Without an argument, writes the 22.5 s synthetic default case (2250 frames x 150 slices, 50 grain
 snapshots) to a temporary NetCDF4 file first. Prints the wall time of each step and the total.
-Not a test (design.md: benchmarks, not timed tests).
+Not a test: timings belong in benchmarks, not in tests.
 """
 
 from __future__ import annotations

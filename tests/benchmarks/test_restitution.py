@@ -23,7 +23,7 @@ def test_phase_averaged_restitution_at_the_default_time_step(wall):
     # Averaged over the phases (many collisions in a flow), e at the default 0.15 t_c is low by about
     # 0.013 (pair) and 0.011 (wall) at e = 0.5 (20 phases; 0.009 and 0.008 with the 10 here), while
     # one collision is off by up to 0.076; 0.025 is twice the measured bias, and the textbook damping
-    # (e = 0.55 for 0.5, design.md) fails it.
+    # (e = 0.55 for 0.5, docs/engine.md) fails it.
     row = table([Case()["numerics.time_step_fraction"]], [0.5], phases=10, wall=wall).iloc[0]
     assert abs(row["error_mean"]) < 0.025
     assert row["error_max"] - row["error_min"] > 0.03  # the per-collision scatter is real at this step

@@ -29,7 +29,7 @@ def brute_force_pairs(pos, cutoff):
 def test_head_on_restitution_grain_grain(e):
     # The contact starts and ends between steps, an O(dt) error in e: measured 0.017 at
     # dt = t_c/20 and 0.003-0.005 at t_c/80 for e = 0.3..0.9, so 0.015 at t_c/80 leaves 3x margin
-    # while the textbook damping (e = 0.55 for 0.5, pitfall in design.md) would fail.
+    # while the textbook damping (e = 0.55 for 0.5, docs/engine.md) would fail.
     sim = Simulation(grain_case("physics.gravity=0", f"particles.restitution={e}",
                                 "numerics.time_step_fraction=0.0125"))
     sim.add_particles([[0.1, 0, 0], [0.1 + 1.2 * D_GRAIN, 0, 0]], [[0.05, 0, 0], [-0.05, 0, 0]])

@@ -62,7 +62,7 @@ def test_ci_dry_run_lists_every_figure():
 
 
 def test_bulk_short_tube_study_plans_its_cases_only(tmp_path):
-    """config/bulk_short_tube.yaml (docs/performance.md): its six tables plan its 15 short-tube
+    """config/bulk_short_tube.yaml (docs/decisions/0005-packed-bed-dashpot-condition.md): its six tables plan its 15 short-tube
     cases from empty and nothing of the paper run; the defaults' seed 0 is the work-precision
     study's bulk fill (identical cases run once)."""
     work = scratch(tmp_path)

@@ -38,7 +38,7 @@ def main(smk) -> None:
                     "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
                     "time_step": float(ds.attrs.get("time_step", float("nan"))),
                     # False: a packed bed (bulk regime) of this case is not converged in the step;
-                    # None: a case file from before 2026-11-26 that does not say
+                    # None: a case file older than the dashpot_resolved attribute
                     "dashpot_resolved": (bool(int(ds.attrs["dashpot_resolved"]))
                                          if "dashpot_resolved" in ds.attrs else None),
                     "simulated_time": float(seconds(ds["time"].values)[-1]),
