@@ -296,9 +296,9 @@ def _mean_after(path, t_from):
 def test_warm_start_reaches_the_same_steady_state_as_a_cold_start(tmp_path):
     vertical = ROOT / "config" / "cases" / "vertical.yaml"
     cold, other, warm = tmp_path / "cold.nc", tmp_path / "other.nc", tmp_path / "warm.nc"
-    run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=3.0"]), cold)
+    run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=4.0"]), cold)
     # the warm run starts from a different steady state: twice the gas velocity (fewer grains)
-    run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=1.5", "gas.superficial_velocity=2.0"]),
+    run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=3.0", "gas.superficial_velocity=2.0"]),
              other)
     run_case(Case.from_yaml(vertical, VERTICAL_SHORT + ["run.duration=2.0"]), warm, initial_state=other)
     with xr.open_dataset(other) as a, xr.open_dataset(warm) as b:
@@ -307,9 +307,9 @@ def test_warm_start_reaches_the_same_steady_state_as_a_cold_start(tmp_path):
         np.testing.assert_allclose(b.attrs["initial_mass"] + b.mass_in.values - b.mass_out.values,
                                    b.n_particles.values * m, rtol=1e-9)
         assert b.attrs["initial_state"] == str(other)
-    cold_mean, cold_se = _mean_after(cold, 1.0)  # 2 s of steady state
+    cold_mean, cold_se = _mean_after(cold, 1.0)  # 3 s of steady state
     warm_mean, warm_se = _mean_after(warm, 1.0)  # 1 s, after 1 s to forget the start
-    start_mean, start_se = _mean_after(other, 0.5)
+    start_mean, start_se = _mean_after(other, 0.5)  # 2.5 s
     # the start is distinguishable from the cold steady state (measured ~5 standard errors apart),
     # so a warm run that remembered it would fail the comparison below
     assert abs(start_mean - cold_mean) > 3 * math.hypot(cold_se, start_se), (start_mean, cold_mean)
