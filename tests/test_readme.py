@@ -28,8 +28,9 @@ PROGRAMS = ("plugsim", "snakemake", "python", "python3", "pip", "pytest", ".")
 HOW = {
     "python3 -m venv .venv": ("other", "set-up: the tests run in the environment it makes"),
     ". .venv/bin/activate": ("other", "set-up: the tests run in the environment it makes"),
-    'pip install -e ".[workflow,test]"': ("other", "extras"),
-    'pip install -e ".[test]"': ("other", "extras"),
+    'pip install -c requirements.lock -e ".[workflow,test]"': ("other", "extras"),
+    'pip install -c requirements.lock -e ".[test]"': ("other", "extras"),
+    "pip freeze --exclude-editable": ("other", "regenerates the lock file"),
     'pip install -e ".[slurm]"': ("other", "extras"),
     "pytest": ("other", "the test suite itself"),
     "snakemake -j2": ("dry", "results/validation/validation.csv"),
@@ -136,7 +137,7 @@ def test_python_example_runs(work):
 def test_install_extras_exist():
     extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
     for command in HOW:
-        if command.startswith("pip install -e"):
+        if command.startswith("pip install") and "-e" in command:
             named = re.search(r"\[(.*)\]", command).group(1).split(",")
             assert set(named) <= set(extras), command
 
@@ -161,3 +162,18 @@ def test_lammps_comparison_runs_or_says_lammps_is_missing(work):
         assert res.stderr.strip().splitlines() == [res.stderr.strip()] and "LAMMPS not found" in res.stderr
     else:
         assert res.returncode == 0, res.stderr[-3000:]
+
+
+def test_lock_file_pins_every_dependency_the_commands_install():
+    """`pip install -c requirements.lock -e ".[...]"` installs exact versions only if the lock names
+    every dependency of the project and of the extras the README installs."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    wanted = list(project["dependencies"])
+    for extra in ("workflow", "test", "slurm"):
+        wanted += project["optional-dependencies"][extra]
+    pinned = {line.split("==")[0].lower().replace("_", "-")
+              for line in (ROOT / "requirements.lock").read_text().splitlines()
+              if "==" in line and not line.startswith("#")}
+    for requirement in wanted:
+        name = re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower().replace("_", "-")
+        assert name in pinned, f"{name} is not pinned in requirements.lock"
