@@ -1,4 +1,4 @@
-"""Sweeps declared in the config, expanded to one case per point (used by the Snakefile and tests).
+"""Sweeps declared in the config, expanded to one case per point (used by workflow/scripts/plan.py).
 
 A sweep (config `sweeps.<name>`) names a base case YAML, fixed overrides and parameters with value
 lists; every combination of the parameter values is one point (a full factorial, like Snakemake's
