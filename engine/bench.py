@@ -148,7 +148,7 @@ def gas_cost_split(steps: int, repeats: int) -> dict:
     The standard packing with the gas on (v_s = 1 m/s, gas updated every step): the whole step is
     timed through Simulation.advance, the coupling and the solve by calling their kernels alone.
     """
-    from .kernels import gas as K
+    from .kernels import gas as gas_kernels
 
     sim = Simulation(standard_case("gas.enabled=true", "numerics.gas_interval=1"))
     sim.add_particles(standard_packing(sim.case))
@@ -166,12 +166,12 @@ def gas_cost_split(steps: int, repeats: int) -> dict:
 
     def couple_steps():
         for _ in range(steps):
-            K.couple(positions, velocities, grains, *arrays, dt, 1, 1.0, 0.0, drag, False)
+            gas_kernels.couple(positions, velocities, grains, *arrays, dt, 1, 1.0, 0.0, drag, False)
 
     def solve_steps():
         for _ in range(steps):
-            K.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g, dt, 1.0,
-                       gas.wmat, gas.wvec)
+            gas_kernels.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g,
+                                 dt, 1.0, gas.wmat, gas.wvec)
 
     couple = statistics.median(_timed(couple_steps) / steps for _ in range(repeats))
     solve = statistics.median(_timed(solve_steps) / steps for _ in range(repeats))
