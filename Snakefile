@@ -37,27 +37,27 @@ rule all:
     """Every figure, every sweep's curve, the validation table and the engine benchmark."""
     default_target: True
     input:
-        [figure_files(fig) for fig in FIGURES],
-        [f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters") for ext in ("csv", "png")],
-        [summary_json(s, p) for s, p in all_points()],
-        "results/validation/validation.csv",
+        [paths.figure_files(fig) for fig in PLAN.figures],
+        [f for s in PLAN.curve_sweeps() for f in (paths.curve_csv(s), paths.curve_png(s))],
+        [paths.summary_json(s, p) for s, p in PLAN.all_points()],
+        paths.VALIDATION_CSV,
         "results/validation/validation.md",
         "results/benchmarks/engine.json",
-        [f"results/benchmarks/work_precision.{e}" for e in ("csv", "png", "pdf") if WORK_PRECISION],
+        [f"results/benchmarks/work_precision.{e}" for e in ("csv", "png", "pdf") if PLAN.work_precision],
         [f"results/benchmarks/scale/scale.{e}" for e in ("csv", "md", "png")],
         [f"results/benchmarks/stability/stability.{e}" for e in ("csv", "md", "png")],
         [f"results/benchmarks/restitution/restitution.{e}" for e in ("csv", "md", "png")],
         [f"results/identification/identification.{e}" for e in ("csv", "md", "png")
-         if IDENTIFICATION.get("compare")],
+         if PLAN.identification.get("compare")],
 
 
 rule figures:
     """Only the paper figures."""
     input:
-        [figure_files(fig) for fig in FIGURES],
+        [paths.figure_files(fig) for fig in PLAN.figures],
 
 
 rule curves:
     """Only the sweep tables and their plots."""
     input:
-        [f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters") for ext in ("csv", "png")],
+        [f for s in PLAN.curve_sweeps() for f in (paths.curve_csv(s), paths.curve_png(s))],

@@ -229,12 +229,12 @@ def stable_fraction(spec: StressCase) -> float:
 def state_of(sim: Simulation) -> dict[str, Any]:
     """Everything the checks need, read from a Simulation (copies; the feed grains included)."""
     n_all = int(sim._n[0])
-    kin = sim._kin[:n_all] == 1
+    in_feed = sim._kin[:n_all] == 1  # grains of the feed layers, held in place until released
     gas_on = bool(sim.case["gas.enabled"])
     return {
         "positions": np.array(sim.positions), "velocities": np.array(sim.velocities),
         "angular_velocities": np.array(sim.angular_velocities),
-        "feed_positions": np.array(sim._pos[:n_all][kin]),
+        "feed_positions": np.array(sim._pos[:n_all][in_feed]),
         "n_particles": sim.n_particles, "mass_in": sim.mass_in, "mass_out": sim.mass_out,
         "grain_mass": sim.model.mass, "radius": sim.model.radius,
         "tube_radius": sim.case["tube.diameter"] / 2, "tube_length": sim.case["tube.length"],
@@ -459,10 +459,6 @@ def note_heating(rows: list[dict], factor: float = HEATING_FACTOR) -> None:
                 text = (f"numerical heating: kinetic energy per grain up to {ratio:.0f}x that at "
                         f"Δt = {ref['time_step_over_tc']:.2f} t_c")
                 r["notes"] = f"{text}; {r['notes']}" if r["notes"] else text
-
-
-class _Silent(RuntimeError):
-    """An independent check failed while the engine carried on."""
 
 
 def warm_up() -> float:

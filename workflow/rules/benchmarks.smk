@@ -28,19 +28,14 @@ rule work_precision:
     numerical knob (config benchmarks.work_precision: sweep -> reference value), one row of panels
     per flow regime."""
     input:
-        summaries=lambda wc: [summary_json(s, p) for s in WORK_PRECISION for p in POINTS[s]],
+        summaries=lambda wc: [paths.summary_json(s, p) for s in PLAN.work_precision for p in PLAN.points[s]],
     output:
         table="results/benchmarks/work_precision.csv",
         png=report("results/benchmarks/work_precision.png", caption="../report/work_precision.rst",
                    category="Benchmarks"),
         pdf="results/benchmarks/work_precision.pdf",
     params:
-        studies=lambda wc: {s: {"parameter": sweep_parameter_keys(s, tied=False)[0],
-                                "reference": WORK_PRECISION[s]["reference"],
-                                "default": knob_default(s),
-                                "regime": WORK_PRECISION[s].get("regime", ""),
-                                "summaries": [summary_json(s, p) for p in POINTS[s]]}
-                            for s in WORK_PRECISION},
+        studies=lambda wc: PLAN.work_precision_studies(),
     log:
         "logs/work_precision/work_precision.log",
     benchmark:
@@ -66,7 +61,7 @@ rule scale:
         python=sys.executable,
         script=Path(workflow.basedir) / "benchmarks" / "scale.py",  # next to the Snakefile, not the cwd
         reduced="--reduced" if config.get("benchmarks", {}).get("scale_reduced", False) else "",
-        engine_version=ENGINE_VERSION,  # re-run when the engine changes
+        engine_source=ENGINE_SOURCE,  # rerun when the engine's source changes
     log:
         "logs/scale/scale.log",
     benchmark:
@@ -94,7 +89,7 @@ rule stability:
         python=sys.executable,
         script=Path(workflow.basedir) / "benchmarks" / "stability.py",  # next to the Snakefile, not the cwd
         reduced="--reduced" if config.get("benchmarks", {}).get("stability_reduced", False) else "",
-        engine_version=ENGINE_VERSION,
+        engine_source=ENGINE_SOURCE,
     log:
         "logs/stability/stability.log",
     benchmark:
@@ -121,7 +116,7 @@ rule restitution:
         python=sys.executable,
         script=Path(workflow.basedir) / "benchmarks" / "restitution.py",
         reduced="--reduced" if config.get("benchmarks", {}).get("restitution_reduced", False) else "",
-        engine_version=ENGINE_VERSION,
+        engine_source=ENGINE_SOURCE,
     log:
         "logs/restitution/restitution.log",
     benchmark:

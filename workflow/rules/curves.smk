@@ -4,11 +4,11 @@
 rule curve:
     """Table of a sweep: its parameters and each case's steady pressure drop, regime, ..."""
     input:
-        summaries=lambda wc: [summary_json(wc.sweep, p) for p in POINTS[wc.sweep]],
+        summaries=lambda wc: [paths.summary_json(wc.sweep, p) for p in PLAN.points[wc.sweep]],
     output:
-        table="results/curves/{sweep}.csv",
+        table=paths.curve_csv("{sweep}"),
     params:
-        parameters=lambda wc: sweep_parameter_keys(wc.sweep),
+        parameters=lambda wc: PLAN.sweep_parameter_keys(wc.sweep),
     log:
         "logs/curve/{sweep}.log",
     benchmark:
@@ -25,13 +25,13 @@ rule curve_plot:
     """Pressure drop against the first parameter of a sweep (one line per value of the second);
     drawn for every sweep, also the ones no paper figure uses."""
     input:
-        table="results/curves/{sweep}.csv",
+        table=paths.curve_csv("{sweep}"),
     output:
-        png=report("results/curves/{sweep}.png", caption="../report/curve.rst",
+        png=report(paths.curve_png("{sweep}"), caption="../report/curve.rst",
                    category="Sweeps", labels={"sweep": "{sweep}"}),
     params:
-        parameters=lambda wc: sweep_parameter_keys(wc.sweep, tied=False),
-        caption=lambda wc: sweep_text(wc.sweep),
+        parameters=lambda wc: PLAN.sweep_parameter_keys(wc.sweep, tied=False),
+        caption=lambda wc: captions.sweep_text(PLAN, wc.sweep),
     log:
         "logs/curve_plot/{sweep}.log",
     benchmark:

@@ -6,16 +6,16 @@ rule detect:
     """Slugs (porosity < threshold) per frame, tracked; the case summary (steady pressure drop,
     regime, grains in the tube, slug rate/velocity/length at the analysis position)."""
     input:
-        case=lambda wc: case_nc(*wc_key(wc)),
+        case=case_nc_of,
     output:
-        slugs="results/slugs/{sweep}/{point}.csv",
-        summary="results/summaries/{sweep}/{point}.json",
+        slugs=paths.slugs_csv("{sweep}", "{point}"),
+        summary=paths.summary_json("{sweep}", "{point}"),
     params:
         threshold=config["analysis"]["threshold"],
-        position=lambda wc: SWEEPS[wc.sweep].get("position", config["analysis"]["position"]),
+        position=lambda wc: PLAN.sweeps[wc.sweep].get("position", config["analysis"]["position"]),
         sweep=lambda wc: wc.sweep,
         point=lambda wc: wc.point,
-        parameters=lambda wc: POINTS[wc.sweep][wc.point],
+        parameters=lambda wc: PLAN.points[wc.sweep][wc.point],
     log:
         "logs/detect/{sweep}/{point}.log",
     benchmark:
@@ -32,10 +32,10 @@ rule statistics:
     """Slug rate and statistics of slug properties at 30 positions along the tube, over the
     steady window of the case."""
     input:
-        slugs="results/slugs/{sweep}/{point}.csv",
-        summary="results/summaries/{sweep}/{point}.json",
+        slugs=paths.slugs_csv("{sweep}", "{point}"),
+        summary=paths.summary_json("{sweep}", "{point}"),
     output:
-        statistics="results/statistics/{sweep}/{point}.csv",
+        statistics=paths.statistics_csv("{sweep}", "{point}"),
     log:
         "logs/statistics/{sweep}/{point}.log",
     benchmark:

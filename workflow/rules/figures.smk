@@ -8,12 +8,12 @@ rule figure:
     input:
         unpack(figure_inputs),
     output:
-        png=report("results/figures/{fig}.png", caption="../report/figure.rst",
+        png=report(paths.figure_files("{fig}")[0], caption="../report/figure.rst",
                    category=figure_category, labels={"figure": "{fig}"}),
-        pdf="results/figures/{fig}.pdf",
-        txt="results/figures/{fig}.txt",
+        pdf=paths.figure_files("{fig}")[1],
+        txt=paths.figure_files("{fig}")[2],
     params:
-        spec=lambda wc: {k: v for k, v in FIGURES[wc.fig].items() if k not in ("case", "cases")},
+        spec=lambda wc: {k: v for k, v in PLAN.figures[wc.fig].items() if k not in ("case", "cases")},
         caption=figure_caption,
         analysis=config["analysis"],
     log:

@@ -1,21 +1,12 @@
 # Stage 7: model identification: the discretisation readings the papers leave open, crossed on the
 # most informative cases, against the papers' numbers (config/identification.yaml).
 
-IDENTIFICATION = config.get("identification") or {}
-for _item in IDENTIFICATION.get("compare") or []:
-    if _item["sweep"] not in POINTS:
-        raise ValueError(f"config: identification compares statement {_item['statement']} on sweep "
-                         f"{_item['sweep']!r}, which is not declared")
-    if not any(st["id"] == _item["statement"] for st in STATEMENTS):
-        raise ValueError(f"config: identification names statement {_item['statement']!r}, which is "
-                         f"not in {config['validation']['statements']}")
-
 
 rule identification:
     """Table and figure of each reading against the papers' numbers for the identification cases."""
     input:
         statements=config["validation"]["statements"],
-        tables=sorted({f"results/curves/{item['sweep']}.csv" for item in IDENTIFICATION.get("compare") or []}),
+        tables=PLAN.identification_tables(),
     output:
         csv=report("results/identification/identification.csv", caption="../report/identification.rst",
                    category="Identification"),
@@ -23,8 +14,8 @@ rule identification:
         png=report("results/identification/identification.png", caption="../report/identification.rst",
                    category="Identification"),
     params:
-        compare=IDENTIFICATION.get("compare") or [],
-        readings=IDENTIFICATION.get("readings") or [],
+        compare=PLAN.identification.get("compare") or [],
+        readings=PLAN.identification.get("readings") or [],
     log:
         "logs/identification/identification.log",
     benchmark:

@@ -6,12 +6,12 @@ rule profiles:
     """Select the slugs passing the analysis position with length and velocity near the mean, and
     average their slice fields against dx/d."""
     input:
-        case=lambda wc: case_nc(*wc_key(wc)),
-        slugs="results/slugs/{sweep}/{point}.csv",
-        summary="results/summaries/{sweep}/{point}.json",
+        case=case_nc_of,
+        slugs=paths.slugs_csv("{sweep}", "{point}"),
+        summary=paths.summary_json("{sweep}", "{point}"),
     output:
-        profile="results/profiles/{sweep}/{point}.nc",
-        selection="results/profiles/{sweep}/{point}.selection.csv",
+        profile=paths.profile_nc("{sweep}", "{point}"),
+        selection=paths.selection_csv("{sweep}", "{point}"),
     params:
         position=config["analysis"]["position"],
         length_band=config["analysis"].get("length_band"),
@@ -32,12 +32,12 @@ rule slug_snapshots:
     """Cross-sections at half tube length (H17) and axial velocity against height (H18, H19)
     from the grain snapshots, in a window around one selected slug passing there."""
     input:
-        case=lambda wc: case_nc(*wc_key(wc)),
-        slugs="results/slugs/{sweep}/{point}.csv",
-        selection="results/profiles/{sweep}/{point}.selection.csv",
+        case=case_nc_of,
+        slugs=paths.slugs_csv("{sweep}", "{point}"),
+        selection=paths.selection_csv("{sweep}", "{point}"),
     output:
-        cross_sections="results/snapshots/{sweep}/{point}/cross_sections.nc",
-        velocity_height="results/snapshots/{sweep}/{point}/velocity_height.nc",
+        cross_sections=paths.snapshot_nc("{sweep}", "{point}", "cross_sections"),
+        velocity_height=paths.snapshot_nc("{sweep}", "{point}", "velocity_height"),
     params:
         window=config["analysis"]["cross_section_window"],
     log:
@@ -55,11 +55,11 @@ rule slug_snapshots:
 rule radial:
     """Radial porosity and velocity in rings through the averaged plug (V18, V19)."""
     input:
-        case=lambda wc: case_nc(*wc_key(wc)),
-        slugs="results/slugs/{sweep}/{point}.csv",
-        selection="results/profiles/{sweep}/{point}.selection.csv",
+        case=case_nc_of,
+        slugs=paths.slugs_csv("{sweep}", "{point}"),
+        selection=paths.selection_csv("{sweep}", "{point}"),
     output:
-        radial="results/snapshots/{sweep}/{point}/radial.nc",
+        radial=paths.snapshot_nc("{sweep}", "{point}", "radial"),
     log:
         "logs/radial/{sweep}/{point}.log",
     benchmark:

@@ -7,10 +7,10 @@ rule simulate:
     input:
         unpack(simulate_inputs),
     output:
-        case="results/cases/{sweep}/{point}.nc",
+        case=paths.case_file("{sweep}", "{point}"),
     params:
-        overrides=lambda wc: OVERRIDES[wc_key(wc)],
-        engine_version=ENGINE_VERSION,
+        overrides=lambda wc: PLAN.overrides[wc_key(wc)],
+        engine_source=ENGINE_SOURCE,  # rerun when the engine's source changes
     log:
         "logs/simulate/{sweep}/{point}.log",
     benchmark:

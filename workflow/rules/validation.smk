@@ -5,16 +5,16 @@ rule validation:
     """Table of the papers' statements: value, tolerance, ours +- standard error, ratio, verdict."""
     input:
         statements=config["validation"]["statements"],
-        data=validation_inputs,
+        data=lambda wc: PLAN.validation_inputs(),
     output:
-        csv=report("results/validation/validation.csv", caption="../report/validation.rst",
+        csv=report(paths.VALIDATION_CSV, caption="../report/validation.rst",
                    category="Validation"),
         md="results/validation/validation.md",
     params:
-        statements=validation_statements(),
+        statements=PLAN.validation_statements(),
         position=config["analysis"]["position"],
         all_cases=config.get("all_cases") or {},
-        partial=PARTIAL,
+        partial=PLAN.partial,
     log:
         "logs/validation/validation.log",
     benchmark:
@@ -33,10 +33,11 @@ rule reference:
     `snakemake -j2 reference` after a run of the paper configuration (with config/partial.yaml:
     only what exists, for a run done in parts)."""
     input:
-        figures=existing_if_partial([f for fig in FIGURES for f in figure_files(fig) if not f.endswith(".pdf")]),
-        curves=existing_if_partial([f"results/curves/{s}.{ext}" for s in POINTS if SWEEPS[s].get("parameters")
-                                    and not s.startswith("wp_") for ext in ("csv", "png")]),
-        validation=["results/validation/validation.csv", "results/validation/validation.md"],
+        figures=PLAN.existing_if_partial([f for fig in PLAN.figures for f in paths.figure_files(fig)
+                                          if not f.endswith(".pdf")]),
+        curves=PLAN.existing_if_partial([f for s in PLAN.curve_sweeps() if not s.startswith("wp_")
+                                         for f in (paths.curve_csv(s), paths.curve_png(s))]),
+        validation=[paths.VALIDATION_CSV, "results/validation/validation.md"],
     output:
         directory("docs/reference/paper"),
     log:

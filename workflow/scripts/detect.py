@@ -37,10 +37,8 @@ def main(smk) -> None:
                     "wall_time_s": float(ds.attrs.get("wall_time_s", float("nan"))),
                     "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
                     "time_step": float(ds.attrs.get("time_step", float("nan"))),
-                    # False: a packed bed (bulk regime) of this case is not converged in the step;
-                    # None: a case file older than the dashpot_resolved attribute
-                    "dashpot_resolved": (bool(int(ds.attrs["dashpot_resolved"]))
-                                         if "dashpot_resolved" in ds.attrs else None),
+                    # False: a packed bed (bulk regime) of this case is not converged in the step
+                    "dashpot_resolved": bool(int(ds.attrs["dashpot_resolved"])),
                     "simulated_time": float(seconds(ds["time"].values)[-1]),
                     "n_slugs": int(slugs["slug_id"].nunique()) if len(slugs) else 0,
                     "vertical": bool(float(ds.attrs.get("inclination_deg", 0.0)) >= 45.0)})

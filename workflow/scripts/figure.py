@@ -1,6 +1,7 @@
 """Rule figure: one paper figure (H01..H21, V03..V19) as PNG + PDF + caption text.
 
-The kind (config figures.<fig>.kind) picks a small function below; each draws with the
+The kind (config figures.<fig>.kind) picks a small function below through the registry of figure
+kinds (workflow/scripts/figure_kinds.py, which also says what each kind reads); each draws with the
 analysis.plots function of that figure family and returns the figure plus facts for the caption
 (numbers measured on the data drawn). The caption text starts with params.caption (title and the
 parameters of the cases, written when the workflow is parsed).
@@ -19,6 +20,7 @@ from matplotlib.figure import Figure
 
 from _helpers import (ensure_parent, note, read_table, save_figure, setup_logging,
                       snakemake_or_cli)
+from figure_kinds import KINDS as FIGURE_KINDS
 
 HPA = 100.0
 
@@ -313,9 +315,9 @@ def radial(inp, spec, settings):
                  f"{ds.attrs.get('note', '')}".strip("; ")]
 
 
-KINDS = {f.__name__: f for f in (porosity_image, porosity_image_pair, grains_3d, curve, curve_pair,
-                                  slug_rate, slug_statistic, profile, cross_sections,
-                                  velocity_height_image, velocity_height, radial)}
+def draw_function(kind: str):
+    """The function of this module that draws a kind (its `draw` in figure_kinds.KINDS)."""
+    return globals()[FIGURE_KINDS[kind].draw]
 
 
 def drawn_check(fig, inp) -> str:
@@ -370,7 +372,7 @@ def _number(value, error, unit) -> str:
 def main(smk) -> None:
     log = setup_logging(smk)
     spec = dict(smk.params.spec)
-    fig, facts = KINDS[spec["kind"]](smk.input, spec, dict(smk.params.get("analysis") or {}))
+    fig, facts = draw_function(spec["kind"])(smk.input, spec, dict(smk.params.get("analysis") or {}))
     if smk.input.get("validation"):
         facts += validation_facts(smk.input.validation, str(getattr(smk.wildcards, "fig", "")))
     facts.append(drawn_check(fig, smk.input))

@@ -1,4 +1,4 @@
-"""Sweeps declared in the config, expanded to one case per point (used by the Snakefile and tests).
+"""Sweeps declared in the config, expanded to one case per point (used by workflow/scripts/plan.py).
 
 A sweep (config `sweeps.<name>`) names a base case YAML, fixed overrides and parameters with value
 lists; every combination of the parameter values is one point (a full factorial, like Snakemake's
@@ -20,25 +20,6 @@ import math
 from typing import Any, Iterable, Mapping
 
 BASE_POINT = "base"
-
-# What each figure kind or validation measure needs from a case:
-#   steady    - only a steady mean (the case may stop once it has converged: run.until_steady)
-#   series    - the slice time series over the whole run (fixed duration)
-#   snapshots - grain snapshots in the window output.snapshot_x_min .. x_max
-KIND_NEEDS = {
-    "porosity_image": {"series"},
-    "porosity_image_pair": {"series"},
-    "grains_3d": {"series", "snapshots"},
-    "curve": {"steady"},
-    "curve_pair": {"steady"},
-    "slug_rate": {"series"},
-    "slug_statistic": {"series"},
-    "profile": {"series"},
-    "cross_sections": {"series", "snapshots"},
-    "velocity_height_image": {"series", "snapshots"},
-    "velocity_height": {"series", "snapshots"},
-    "radial": {"series", "snapshots"},
-}
 
 
 class SweepError(ValueError):
@@ -170,24 +151,6 @@ def case_overrides(config: Mapping[str, Any], sweep: str, point: str,
                   config.get("all_cases") or {}, points[point]):
         merged.update(layer)
     return merged
-
-
-def yaml_scalar(value: Any) -> str:
-    """A scalar written so that YAML (engine.case.parse_override) reads it back as the same value."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        text = repr(value)
-        mantissa, _, exponent = text.partition("e")
-        if exponent and "." not in mantissa:  # PyYAML reads 1e-05 as a string, 1.0e-05 as a float
-            text = f"{mantissa}.0e{exponent}"
-        return text
-    return str(value)
-
-
-def override_strings(overrides: Mapping[str, Any]) -> list[str]:
-    """{'a.b': 1.0} -> ['a.b=1.0'] in the form `plugsim run --set` and engine.Case accept."""
-    return [f"{key}={yaml_scalar(value)}" for key, value in overrides.items()]
 
 
 def references(ref: Mapping[str, Any] | Iterable) -> list[Mapping[str, Any]]:

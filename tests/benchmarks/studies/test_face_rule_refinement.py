@@ -1,15 +1,15 @@
-"""benchmarks/face_rule_refinement.py: both face rules are consistent (the kept share of a static
+"""benchmarks/studies/face_rule_refinement.py: both face rules are consistent (the kept share of a static
 plug's resistance converges to 1, first order in the node spacing); harmonic keeps more."""
 
 import numpy as np
 import pytest
 
-from . import load_benchmark
+from .. import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def refinement():
-    bench = load_benchmark("face_rule_refinement")
+    bench = load_benchmark("studies/face_rule_refinement")
     return bench.table((150, 300, 600, 1200))
 
 

@@ -8,7 +8,7 @@ rules converge to 1 (first order in the node spacing); at the papers' 150 nodes 
 keeps more. Static: the grains' response (slower plugs where the resistance is kept) is the
 identification study's (config/identification.yaml).
 
-    python benchmarks/face_rule_refinement.py [--nodes 75 150 300 600 1200] [--out DIR]
+    python benchmarks/studies/face_rule_refinement.py [--nodes 75 150 300 600 1200] [--out DIR]
 """
 
 from __future__ import annotations

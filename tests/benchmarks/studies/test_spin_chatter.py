@@ -1,4 +1,4 @@
-"""benchmarks/spin_chatter.py: the reversed-increment measure and the dashpot's step ratio."""
+"""benchmarks/studies/spin_chatter.py: the reversed-increment measure and the dashpot's step ratio."""
 
 import json
 import math
@@ -10,16 +10,16 @@ import pytest
 from engine import Case
 from engine.run import run_case
 
-from . import load_benchmark
+from .. import load_benchmark
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 SMALL = ["tube.length=0.04", "gas.nodes_x=12", "run.duration=0.1", "feed.mass_flow_kg_h=9.95",
          "feed.entry_velocity=0.16"]
 
 
 @pytest.fixture(scope="module")
 def spin_chatter():
-    return load_benchmark("spin_chatter")
+    return load_benchmark("studies/spin_chatter")
 
 
 def test_reversed_fraction_tells_a_resolved_oscillation_from_period_two_chatter(spin_chatter):

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """When would the cases of a run have stopped at another steady-stop tolerance, and what would move?
 
-    python benchmarks/steady_tolerance.py results/cases/*/*.nc [--tolerance 0.03 0.04 0.05]
+    python benchmarks/studies/steady_tolerance.py results/cases/*/*.nc [--tolerance 0.03 0.04 0.05]
         [--every 5] [--csv OUT.csv]
 
 Replays the steady stop of `plugsim run` (engine.run.steady_window, with the case's own
@@ -31,7 +31,7 @@ import pandas as pd
 import xarray as xr
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from analysis.curves import steady_pressure_drop  # noqa: E402
 from engine import Case  # noqa: E402

@@ -1,10 +1,10 @@
-"""benchmarks/steady_tolerance.py: the steady stop replayed on a recorded series (synthetic case)."""
+"""benchmarks/studies/steady_tolerance.py: the steady stop replayed on a recorded series (synthetic case)."""
 
 import pytest
 
 from tests.analysis import synthetic
 
-from . import load_benchmark
+from .. import load_benchmark
 
 EVERY = 10  # frames between stop checks (0.1 s); every frame would cost ~10x more here
 STEADY = {"run.until_steady": True, "run.steady_settle": 1.0, "run.steady_min_window": 2.0,
@@ -13,7 +13,7 @@ STEADY = {"run.until_steady": True, "run.steady_settle": 1.0, "run.steady_min_wi
 
 @pytest.fixture(scope="module")
 def st():
-    return load_benchmark("steady_tolerance")
+    return load_benchmark("studies/steady_tolerance")
 
 
 def recorded(duration=40.0, **run):

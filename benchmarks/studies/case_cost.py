@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Cost of a real case in steady flow, for variants of its numerical settings, measured interleaved.
 
-    python benchmarks/case_cost.py CASE.yaml --initial-state CASE_FILE.nc \\
+    python benchmarks/studies/case_cost.py CASE.yaml --initial-state CASE_FILE.nc \\
         [--variant "numerics.neighbor_skin=0.15" --variant "numerics.neighbor_skin=0.3" ...] \\
         [--chunk 0.01] [--rounds 8] [--json OUT.json]
 
@@ -19,7 +19,7 @@ The gas, the feed and the outlet are on, as in the case itself.
 
 The default cases from their own 30 s states (docs/performance.md):
 
-    python benchmarks/case_cost.py config/cases/vertical.yaml \\
+    python benchmarks/studies/case_cost.py config/cases/vertical.yaml \\
         --initial-state results/cases/v_default/base.nc
 """
 
@@ -34,10 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from engine import Case, Simulation  # noqa: E402
-from engine.kernels import params as P  # noqa: E402
+from engine.kernels import params  # noqa: E402
 from engine.run import read_initial_state  # noqa: E402
 
 SETTLE = 0.005  # s advanced before timing: compiles the kernels and lets the warm start settle
@@ -68,7 +68,7 @@ def measure(sims: list[Simulation], chunk: float, rounds: int) -> list[dict]:
             cost[k].append((time.process_time() - cpu) / chunk)
             wall[k].append((time.perf_counter() - start) / chunk)
             done = sim._counters - before
-            interval[k].append(done[P.STEPS] / max(done[P.REBUILDS], 1))
+            interval[k].append(done[params.STEPS] / max(done[params.REBUILDS], 1))
     rows = []
     for k, sim in enumerate(sims):
         n = sim.n_particles

@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Step-to-step chatter of the grain spins in a packed bed, for variants of the time step and gamma_t.
 
-    python benchmarks/spin_chatter.py CASE.yaml --initial-state CASE_FILE.nc \\
+    python benchmarks/studies/spin_chatter.py CASE.yaml --initial-state CASE_FILE.nc \\
         [--variant "numerics.time_step_fraction=0.05" ...] [--steps 120] [--settle 0.003] [--json OUT.json]
 
 The explicit tangential dashpot F_t = -gamma_t v_t relaxes a contact's slip in the time m_slip/gamma_t
@@ -17,7 +17,7 @@ of them) and the rms value.
 
 The work-precision study's bulk bed (docs/decisions/0005-packed-bed-dashpot-condition.md):
 
-    python benchmarks/spin_chatter.py config/cases/horizontal.yaml \\
+    python benchmarks/studies/spin_chatter.py config/cases/horizontal.yaml \\
         --initial-state results/cases/wp_bulk_fill/base.nc \\
         --set tube.length=0.2 --set gas.nodes_x=57 --set gas.superficial_velocity=0.15 \\
         --variant "numerics.time_step_fraction=0.15" --variant "numerics.time_step_fraction=0.05"
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from engine import Case, Simulation  # noqa: E402
 from engine.run import read_initial_state  # noqa: E402

@@ -7,7 +7,7 @@ its largest deviation from k = 1 over the whole record, and the wall time relati
 "1*" repeats k = 1 from positions perturbed by 1 nm: grain packings are chaotic, so this is the
 noise floor below which a difference between policies means nothing.
 
-    python benchmarks/gas_interval.py [--intervals 1 2 5 10 20] [--seconds 0.15]
+    python benchmarks/studies/gas_interval.py [--intervals 1 2 5 10 20] [--seconds 0.15]
 """
 
 import argparse

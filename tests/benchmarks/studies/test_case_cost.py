@@ -1,4 +1,4 @@
-"""benchmarks/case_cost.py: interleaved variants from one warm state (a few seconds)."""
+"""benchmarks/studies/case_cost.py: interleaved variants from one warm state (a few seconds)."""
 
 import json
 from pathlib import Path
@@ -8,16 +8,16 @@ import pytest
 from engine import Case
 from engine.run import run_case
 
-from . import load_benchmark
+from .. import load_benchmark
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 SMALL = ["tube.length=0.04", "gas.nodes_x=12", "run.duration=0.3", "feed.mass_flow_kg_h=9.95",
          "feed.entry_velocity=0.16"]
 
 
 @pytest.fixture(scope="module")
 def case_cost():
-    return load_benchmark("case_cost")
+    return load_benchmark("studies/case_cost")
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,1 @@
+"""Tests of the one-off study scripts in benchmarks/studies/."""

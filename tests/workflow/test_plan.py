@@ -1,0 +1,231 @@
+"""The workflow's plan (workflow/scripts/plan.py) on small configs, without Snakemake: what each
+case records for its consumers, identical cases run once, warm starts, file names, and the errors
+for sweeps, keys and kinds that do not exist."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+# appended, not prepended: workflow/scripts/statistics.py must not shadow the standard library
+sys.path.append(str(ROOT / "workflow" / "scripts"))
+import plan as paths  # noqa: E402
+from plan import Plan, PlanError  # noqa: E402
+
+H = str(ROOT / "config/cases/horizontal.yaml")
+V = str(ROOT / "config/cases/vertical.yaml")
+
+
+def config(sweeps, figures=None, **extra):
+    return {"sweeps": sweeps, "figures": figures or {},
+            "validation": {"statements": "s.yaml", "experiment": "exp.csv"}, **extra}
+
+
+def single(**overrides):
+    return {"base": H, "overrides": {"run.duration": 4.0, **overrides}}
+
+
+def curve(values, **spec):
+    return {"base": H, "parameters": {"gas.superficial_velocity": values}, **spec}
+
+
+# ---- what each case records ----------------------------------------------------------------------
+
+def test_a_curve_point_only_needs_a_steady_mean():
+    plan = Plan(config({"h_vs": curve([1.5, 2.0])}))
+    for key in plan.all_points():
+        assert plan.needs[key] == {"steady"}
+        assert plan.overrides[key]["run.until_steady"] is True
+        assert plan.overrides[key]["output.snapshots"] is False
+
+
+def test_a_snapshot_figure_makes_its_case_record_snapshots_for_the_whole_run():
+    plan = Plan(config({"h_default": single(), "h_vs": curve([1.5, 2.0])},
+                       {"H02": {"kind": "grains_3d", "case": {"sweep": "h_default"}}}))
+    key = ("h_default", "base")
+    assert plan.needs[key] == {"steady", "series", "snapshots"}
+    assert plan.overrides[key]["output.snapshots"] is True
+    assert plan.overrides[key]["run.until_steady"] is False
+    assert plan.cases[key]["output.snapshots"] is True
+    assert plan.overrides[("h_vs", "gas.superficial_velocity~2")]["output.snapshots"] is False
+
+
+def test_a_statement_on_a_curve_point_makes_it_run_its_full_duration():
+    statements = [{"id": "S1", "measure": "slug_stat", "quantity": "length",
+                   "case": {"sweep": "h_vs", "point": {"gas.superficial_velocity": 2.0}}}]
+    plan = Plan(config({"h_vs": curve([1.5, 2.0])}), statements)
+    assert plan.overrides[("h_vs", "gas.superficial_velocity~2")]["run.until_steady"] is False
+    assert plan.overrides[("h_vs", "gas.superficial_velocity~1.5")]["run.until_steady"] is True
+    files = plan.validation_statements()[0]["files"]
+    assert files == {"slugs": "results/slugs/h_vs/gas.superficial_velocity~2.csv",
+                     "summary": "results/summaries/h_vs/gas.superficial_velocity~2.json"}
+
+
+def test_a_derived_key_set_by_a_sweep_wins_over_what_the_consumers_need():
+    plan = Plan(config({"h_vs": curve([1.5], overrides={"run.until_steady": False})}))
+    assert plan.overrides[("h_vs", "gas.superficial_velocity~1.5")]["run.until_steady"] is False
+
+
+# ---- identical cases run once --------------------------------------------------------------------
+
+def test_a_curve_point_equal_to_a_single_case_reads_its_file_and_adds_its_needs():
+    sweeps = {"h_vs": curve([1.0, 2.0], overrides={"run.duration": 4.0}), "h_default": single()}
+    figures = {"H02": {"kind": "grains_3d", "case": {"sweep": "h_default"}}}
+    plan = Plan(config(sweeps, figures))
+    same = ("h_vs", "gas.superficial_velocity~1")  # 1.0 m/s is the base case's own value
+    assert plan.canonical[same] == ("h_default", "base")  # named after the single-case sweep
+    assert plan.case_nc(*same) == "results/cases/h_default/base.nc"
+    assert plan.cases[same] == plan.cases[("h_default", "base")]
+    assert plan.overrides[same]["output.snapshots"] is True  # the union of both consumers' needs
+    other = ("h_vs", "gas.superficial_velocity~2")
+    assert plan.canonical[other] == other
+    assert plan.case_nc(*other) == "results/cases/h_vs/gas.superficial_velocity~2.nc"
+
+
+def test_cases_that_differ_in_a_key_or_their_start_are_not_merged():
+    sweeps = {"h_default": single(), "h_short": single(**{"run.duration": 3.0}),
+              "h_warm": {"base": H, "warm_start": {"sweep": "h_short"},
+                         "overrides": {"run.duration": 4.0}},
+              "v_default": {"base": V, "overrides": {"run.duration": 4.0}}}
+    plan = Plan(config(sweeps))
+    assert len(set(plan.canonical.values())) == 4
+    assert plan.canonical[("h_warm", "base")] == ("h_warm", "base")  # same keys as h_default, warm
+
+
+# ---- warm starts ---------------------------------------------------------------------------------
+
+def test_warm_start_names_the_source_case_of_every_other_point():
+    sweeps = {"h_default": single(),
+              "h_vs": curve([1.0, 2.0], warm_start={"sweep": "h_default"})}
+    plan = Plan(config(sweeps))
+    assert plan.warm_source == {("h_vs", "gas.superficial_velocity~1"): ("h_default", "base"),
+                                ("h_vs", "gas.superficial_velocity~2"): ("h_default", "base")}
+    assert plan.simulate_inputs("h_vs", "gas.superficial_velocity~2") == {
+        "base": H, "initial_state": "results/cases/h_default/base.nc"}
+    assert plan.simulate_inputs("h_default", "base") == {"base": H}
+
+
+def test_a_sweep_warm_started_from_its_own_point_runs_that_point_from_an_empty_tube():
+    sweeps = {"h_vs": curve([1.0, 2.0], warm_start={"sweep": "h_vs",
+                                                     "point": {"gas.superficial_velocity": 1.0}})}
+    plan = Plan(config(sweeps))
+    assert plan.warm_source == {("h_vs", "gas.superficial_velocity~2"): ("h_vs", "gas.superficial_velocity~1")}
+
+
+def test_warm_start_from_next_chains_points_towards_the_last_value():
+    sweeps = {"h_default": single(),
+              "h_vs": curve([0.5, 1.5, 2.0], warm_start={"sweep": "h_default"},
+                            warm_start_from_next={"gas.superficial_velocity": [0.5, 1.5]})}
+    plan = Plan(config(sweeps))
+    point = "gas.superficial_velocity~{}".format
+    assert plan.warm_source[("h_vs", point("0.5"))] == ("h_vs", point("1.5"))
+    assert plan.warm_source[("h_vs", point("1.5"))] == ("h_vs", point("2"))
+    assert plan.warm_source[("h_vs", point("2"))] == ("h_default", "base")
+
+
+def test_warm_start_from_a_warm_started_sweep_is_refused():
+    sweeps = {"h_default": single(), "a": curve([2.0], warm_start={"sweep": "h_default"}),
+              "b": curve([3.0], warm_start={"sweep": "a"})}
+    with pytest.raises(PlanError, match="sweep 'b' warm-starts from sweep 'a', which is warm-started"):
+        Plan(config(sweeps))
+
+
+def test_warm_start_from_next_without_a_next_value_is_refused():
+    sweeps = {"h_vs": curve([1.5, 2.0], warm_start_from_next={"gas.superficial_velocity": [2.0]})}
+    with pytest.raises(PlanError, match=r"warm_start_from_next: gas.superficial_velocity = 2.0 must be"):
+        Plan(config(sweeps))
+
+
+# ---- errors --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("figure, message", [
+    ({"kind": "grains_3d", "case": {"sweep": "nope"}},
+     r"figure H02 refers to sweep 'nope', which is not declared \(sweeps: \['h_vs'\]\)"),
+    ({"kind": "curve", "sweep": "nope", "x": "gas.superficial_velocity"},
+     "figure H02 draws sweep 'nope', which is not declared"),
+    ({"kind": "grains_3d", "case": {"sweep": "h_vs"}}, "sweep 'h_vs' has 2 points"),
+    ({"kind": "grains_3d", "case": {"sweep": "h_vs", "point": {"gas.superficial_velocity": 9.0}}},
+     r"has 0 points matching \{'gas.superficial_velocity': 9.0\}"),
+    ({"kind": "pie_chart", "case": {"sweep": "h_vs"}}, "figure H02: unknown kind 'pie_chart'"),
+    ({"kind": "curve", "case": {"sweep": "h_vs"}}, "kind curve draws `sweep`"),
+])
+def test_a_figure_that_cannot_be_drawn_is_refused(figure, message):
+    with pytest.raises(PlanError, match=message):
+        Plan(config({"h_vs": curve([1.5, 2.0])}, {"H02": figure}))
+
+
+def test_an_unknown_case_key_is_refused_naming_the_sweep_and_point():
+    sweeps = {"h_vs": curve([1.5], overrides={"gas.viscosty": 1e-5})}
+    with pytest.raises(PlanError, match=r"sweep 'h_vs', point 'gas.superficial_velocity~1.5': .*gas.viscosty"):
+        Plan(config(sweeps))
+
+
+def test_a_value_out_of_range_is_refused():
+    with pytest.raises(PlanError, match="particles.friction"):
+        Plan(config({"h_mu": {"base": H, "parameters": {"particles.friction": [-1.0]}}}))
+
+
+def test_a_missing_base_case_is_refused():
+    with pytest.raises(PlanError, match="base case /nonexistent.yaml"):
+        Plan(config({"h": {"base": "/nonexistent.yaml"}}))
+
+
+def test_an_unknown_measure_is_refused_naming_the_statement():
+    statements = [{"id": "S9", "measure": "vibes", "case": {"sweep": "h_vs"}}]
+    with pytest.raises(PlanError, match="s.yaml: statement S9: unknown measure 'vibes'"):
+        Plan(config({"h_vs": curve([1.5])}), statements, "s.yaml")
+
+
+def test_a_statement_on_an_undeclared_sweep_reads_nothing_and_is_not_pending():
+    statements = [{"id": "S1", "measure": "pressure_drop", "case": {"sweep": "v_default"}},
+                  {"id": "S2", "measure": "trend", "sweep": "v_vs"}]
+    plan = Plan(config({"h_vs": curve([1.5])}), statements)
+    for item in plan.validation_statements():
+        assert item["files"] == {} and item["pending"] is False
+    assert plan.validation_inputs() == []
+
+
+def test_work_precision_refuses_a_reference_that_is_no_point():
+    wp = {"benchmarks": {"work_precision": {"h_vs": {"reference": 3.0}}}}
+    with pytest.raises(PlanError, match=r"work_precision.h_vs.reference: sweep 'h_vs' has 0 points"):
+        Plan(config({"h_vs": curve([1.5, 2.0])}, **wp))
+
+
+# ---- file names and figure inputs ----------------------------------------------------------------
+
+def test_path_functions_give_the_rules_output_patterns():
+    assert paths.case_file("{sweep}", "{point}") == "results/cases/{sweep}/{point}.nc"
+    assert paths.snapshot_nc("{sweep}", "{point}", "radial") == "results/snapshots/{sweep}/{point}/radial.nc"
+    assert paths.figure_files("{fig}") == [f"results/figures/{{fig}}.{e}" for e in ("png", "pdf", "txt")]
+
+
+def test_figure_inputs_come_from_the_kind_registry():
+    sweeps = {"h_default": single(), "h_vs": curve([1.5, 2.0]), "h_mu": curve([2.5])}
+    figures = {"H02": {"kind": "grains_3d", "case": {"sweep": "h_default"}},
+               "V04": {"kind": "curve", "sweep": "h_vs", "x": "gas.superficial_velocity",
+                       "experiment": True},
+               "H21": {"kind": "curve_pair", "sweeps": ["h_vs", "h_mu"], "x": "gas.superficial_velocity"},
+               "H17": {"kind": "cross_sections", "case": {"sweep": "h_default"}}}
+    statements = [{"id": "S1", "measure": "trend", "sweep": "h_vs", "figure": ["V04"]}]
+    plan = Plan(config(sweeps, figures), statements)
+    assert plan.figure_inputs("H02") == {"case": "results/cases/h_default/base.nc",
+                                         "slugs": "results/slugs/h_default/base.csv",
+                                         "selection": "results/profiles/h_default/base.selection.csv"}
+    assert plan.figure_inputs("V04") == {"tables": ["results/curves/h_vs.csv"], "experiment": "exp.csv",
+                                         "validation": "results/validation/validation.csv"}
+    assert plan.figure_inputs("H21") == {"tables": ["results/curves/h_vs.csv", "results/curves/h_mu.csv"]}
+    assert plan.figure_inputs("H17") == {"snapshots": "results/snapshots/h_default/base/cross_sections.nc"}
+
+
+def test_source_digest_follows_every_python_file_and_nothing_else(tmp_path):
+    (tmp_path / "kernels").mkdir()
+    (tmp_path / "kernels" / "pair.py").write_text("K = 1\n")
+    (tmp_path / "a.py").write_text("A = 1\n")
+    first = paths.source_digest(tmp_path)
+    (tmp_path / "notes.txt").write_text("not source")
+    assert paths.source_digest(tmp_path) == first
+    (tmp_path / "kernels" / "pair.py").write_text("K = 2\n")
+    assert paths.source_digest(tmp_path) != first
