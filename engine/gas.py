@@ -210,6 +210,11 @@ class GasField:
         self._feed_volume_rate = float(value)
         self.update()
 
+    def arrays(self) -> K.GasArrays:
+        """The field's arrays as the kernels take them (`couple`, the grain time loop)."""
+        return K.GasArrays(self.P, self.dep, self.phi, self.kappa, self.u, self.src, self.nodal,
+                           self.wmat, self.wvec, self.area, self.ay, self.az, self.g)
+
     def update(self):
         """Recompute phi, kappa, u and the sources from the deposit `dep`."""
         K.update_fields(self.dep, self.area, self.g, self.phi, self.kappa, self.u)
@@ -302,8 +307,8 @@ def benchmark(repeats=2000, grains=3200, seed=0):
     f.deposit(pos, vel)
 
     @nb.njit
-    def run(which, reps, theta, pos, vel, force, P, dep, phi, kappa, u, src, nodal, wmat, wvec,
-            work, area, ay, az, g):
+    def run(which, reps, theta, pos, vel, force, gas, work):
+        P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g = gas
         for _ in range(reps):
             if which == 0:
                 K.gas_step(P, phi, kappa, src, area, ay, az, g, 1e-5, theta, wmat, wvec)
@@ -318,13 +323,11 @@ def benchmark(repeats=2000, grains=3200, seed=0):
             elif which == 4:
                 K.drag_forces(pos, len(pos), nodal, g, force, False)
             else:
-                K.couple(pos, vel, len(pos), P, dep, phi, kappa, u, src, nodal, wmat, wvec, area,
-                         ay, az, g, 1e-5, 1, theta, 0.0, force, False)
+                K.couple(pos, vel, len(pos), gas, 1e-5, 1, theta, 0.0, force, False)
 
     names = ["gas_step", "gas_step_split", "deposit", "fields_sources_gradient", "drag_forces",
              "couple"]
-    arrays = (pos, vel, force, f.P, f.dep, f.phi, f.kappa, f.u, f.src, f.nodal, f.wmat, f.wvec,
-              f.work, f.area, f.ay, f.az, f.g)
+    arrays = (pos, vel, force, f.arrays(), f.work)
     out = {}
     for which, name in enumerate(names):
         run(which, 1, f.theta, *arrays)

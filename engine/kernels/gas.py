@@ -14,7 +14,12 @@ in this order:
 Every kernel is allocation-free; work arrays are passed in.
 """
 
+from collections import namedtuple
+
 import numba as nb
+
+# The arrays of one gas field, in the order the kernels take them (engine.gas.GasField.arrays)
+GasArrays = namedtuple("GasArrays", "P dep phi kappa u src nodal wmat wvec area ay az g")
 
 # fastmath without nnan/ninf so that isfinite guards keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -606,14 +611,14 @@ def gas_content(P, phi, area, g):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def couple(pos, vel, n, P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
-           dt, substeps, theta, feed_volume_rate, force, accumulate):
+def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accumulate):
     """One grain step of the gas: deposit, fields, `substeps` gas steps of dt/substeps, drag forces.
 
-    The five kernels above in the required order; P is advanced in place and the drag goes to
-    force (see drag_forces).  g[G_SPLIT] selects the split scheme, which uses wvec as its work
-    array (GasField sizes wvec for both).
+    The five kernels above in the required order on the arrays of `gas` (a GasArrays); P is
+    advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT] selects the split
+    scheme, which uses wvec as its work array (GasField sizes wvec for both).
     """
+    P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g = gas
     deposit(pos, vel, n, g, dep)
     update_fields(dep, area, g, phi, kappa, u)
     volume_sources(u, area, ay, az, g, feed_volume_rate, src)

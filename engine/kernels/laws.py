@@ -1,0 +1,154 @@
+"""The force laws, one place each: contact (grain-grain and grain-wall) and body forces (SI units).
+
+Each law is a small function inlined into the kernels that loop over contacts (contacts.py) or
+grains (stepper.py); its constants come from the parameter vector once per kernel call
+(`pair_constants`, `wall_constants`, `kick_constants`), as a tuple that stays in registers.
+
+Normal: F_n = max(0, k_n delta + gamma_n v_n) along the line of centres (never attractive).
+Tangential: F_t = -min(mu F_n, gamma_t |v_t|) v_t/|v_t| at the contact point (no history), with
+v_t the tangential slip velocity of the contact point including rotation; gamma_t arrives capped at
+m_slip/dt so that the explicit dashpot cannot reverse a slip (engine/contact.py).
+Rolling resistance (particles.rolling_resistance, mu_r; 0 = off): a torque
+M = -min(mu_r r F_n, I_rel |w_rel|/dt) w_rel/|w_rel| against the relative spin w_rel (w_1 - w_2,
+or the grain's spin at a wall), capped so that one step cannot reverse w_rel (I_rel = I/2 for a
+pair, I at a wall).
+"""
+
+import math
+
+import numba as nb
+
+from . import params as P
+
+# fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def pair_constants(p):
+    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I_rel/dt) between two grains."""
+    return (p[P.RADIUS], p[P.KN], p[P.GN_PAIR], p[P.MU_PAIR], p[P.GT], p[P.ROLLING_RESISTANCE],
+            0.5 * p[P.INERTIA] / p[P.DT])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def wall_constants(p):
+    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I/dt) between a grain and a wall."""
+    return (p[P.RADIUS], p[P.KN], p[P.GN_WALL], p[P.MU_WALL], p[P.GT_WALL], p[P.ROLLING_RESISTANCE],
+            p[P.INERTIA] / p[P.DT])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
+    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
+    if the contact is in its viscous (sticking) branch, else 0."""
+    vcn = vcx * nx + vcy * ny + vcz * nz
+    vtx = vcx - vcn * nx
+    vty = vcy - vcn * ny
+    vtz = vcz - vcn * nz
+    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    if vt <= 0.0:
+        return 0.0, 0.0, 0.0, gt
+    fv = gt * vt
+    fc = mu * fn
+    ft = min(fc, fv)
+    s = -ft / vt
+    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def rolling_torque(fn, wx, wy, wz, r, mu_r, cap):
+    """Rolling-resistance torque on the first body against the relative spin w, N m."""
+    w = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if w <= 0.0:
+        return 0.0, 0.0, 0.0
+    s = -min(mu_r * r * fn, cap * w) / w
+    return s * wx, s * wy, s * wz
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def normal_force(delta, vn, c):
+    """Normal force magnitude k_n delta + gamma_n v_n (N; repulsive when positive) at overlap delta
+    (m) and normal approach velocity vn (m/s); c = pair_ or wall_constants."""
+    return c[1] * delta + c[2] * vn
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, rolling):
+    """Force and torques of a contact with normal force fn > 0 on the first body, along the unit
+    normal n (first -> second); v the relative velocity v1 - v2, w the spin sum w1 + w2 of the
+    contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
+
+    Returns (F, T1, T2, g): the force and torque on the first body, the torque on the second (the
+    first's tangential torque minus its rolling torque; the second's force is -F), and gamma_t if
+    the tangential force is in its viscous branch (else 0). `rolling` switches the rolling
+    resistance on; it is a compile-time constant of the calling loop (contacts.py compiles one
+    loop per switch), so that the loop without it keeps its arithmetic and speed.
+    """
+    r, _, _, mu, gt, mu_r, cap = c
+    ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
+                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+    fx = -fn * nx + ftx
+    fy = -fn * ny + fty
+    fz = -fn * nz + ftz
+    # both bodies get the same torque r n x F_t
+    tx = r * (ny * ftz - nz * fty)
+    ty = r * (nz * ftx - nx * ftz)
+    tz = r * (nx * fty - ny * ftx)
+    if rolling:
+        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap)
+        return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
+    return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, rolling):
+    """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall) at
+    overlap delta (m); c = wall_constants.
+
+    Returns (F_n, F, T, g): the normal force magnitude (0 when separating, then all zero), force
+    and torque on the grain, and gamma_t if the tangential force is in its viscous branch (else 0).
+    Inlined with constant normals, the zero components fold away.
+    """
+    fn = normal_force(delta, vx * nx + vy * ny + vz * nz, c)
+    if fn <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
+                                                        c, rolling)
+    return fn, fx, fy, fz, tx, ty, tz, g
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def kick_constants(p, kick_dt):
+    """(a, b, c, gx, gy, gz, rotate, implicit) of a kick by kick_dt: the velocity per force kick_dt/m,
+    the spin per torque kick_dt/I, the implicit-spin factor kick_dt r^2/I, the velocity change by
+    the body forces (gravity) and the two switches."""
+    return (kick_dt / p[P.MASS], kick_dt / p[P.INERTIA], kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA],
+            kick_dt * p[P.GX], kick_dt * p[P.GY], kick_dt * p[P.GZ],
+            p[P.ROTATION] > 0.0, p[P.IMPLICIT_SPIN] > 0.0)
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def kick(vel, omg, force, drag, torque, i, k, drift):
+    """Kick grain i's velocity (contacts, gas drag, body forces) and spin by the constants k of
+    kick_constants; returns the new velocity. The kick before a drift sums v + a F + g left to
+    right, the closing half kick v + (a F + g): both orders are kept so that a step's rounding is
+    that of the engine's reference runs (docs/design.md, "A new force term")."""
+    a, b, c, gx, gy, gz, rotate, implicit = k
+    if drift:
+        vx = vel[i, 0] + a * (force[i, 0] + drag[i, 0]) + gx
+        vy = vel[i, 1] + a * (force[i, 1] + drag[i, 1]) + gy
+        vz = vel[i, 2] + a * (force[i, 2] + drag[i, 2]) + gz
+    else:
+        vx = vel[i, 0] + (a * (force[i, 0] + drag[i, 0]) + gx)
+        vy = vel[i, 1] + (a * (force[i, 1] + drag[i, 1]) + gy)
+        vz = vel[i, 2] + (a * (force[i, 2] + drag[i, 2]) + gz)
+    vel[i, 0] = vx
+    vel[i, 1] = vy
+    vel[i, 2] = vz
+    if rotate:
+        bb = b / (1.0 + c * torque[i, 3]) if implicit else b
+        omg[i, 0] += bb * torque[i, 0]
+        omg[i, 1] += bb * torque[i, 1]
+        omg[i, 2] += bb * torque[i, 2]
+    return vx, vy, vz
