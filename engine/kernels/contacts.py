@@ -101,7 +101,7 @@ def _balance(nbr_start, contact_count, n, bounds):
     bounds[nchunks] = n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
     """The contact loop (_contacts_range_with) compiled with the optional terms the case switches on."""
     if p[P.ROLLING_RESISTANCE] > 0.0:

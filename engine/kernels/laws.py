@@ -129,26 +129,21 @@ def kick_constants(p, kick_dt):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def kick(vel, omg, force, drag, torque, i, k, drift):
-    """Kick grain i's velocity (contacts, gas drag, body forces) and spin by the constants k of
-    kick_constants; returns the new velocity. The kick before a drift sums v + a F + g left to
-    right, the closing half kick v + (a F + g): both orders are kept so that a step's rounding is
-    that of the engine's reference runs (docs/design.md, "A new force term")."""
-    a, b, c, gx, gy, gz, rotate, implicit = k
+def velocity_kick(vx, vy, vz, fx, fy, fz, k, drift):
+    """A grain's velocity v (m/s) kicked by the force F (contacts and gas drag, N) and the body
+    forces (gravity) with the constants k of kick_constants. The kick before a drift sums
+    v + a F + g left to right, the closing half kick v + (a F + g): both orders are kept so that
+    the rounding of a step stays that of the engine's reference runs."""
+    a, _, _, gx, gy, gz, _, _ = k
     if drift:
-        vx = vel[i, 0] + a * (force[i, 0] + drag[i, 0]) + gx
-        vy = vel[i, 1] + a * (force[i, 1] + drag[i, 1]) + gy
-        vz = vel[i, 2] + a * (force[i, 2] + drag[i, 2]) + gz
-    else:
-        vx = vel[i, 0] + (a * (force[i, 0] + drag[i, 0]) + gx)
-        vy = vel[i, 1] + (a * (force[i, 1] + drag[i, 1]) + gy)
-        vz = vel[i, 2] + (a * (force[i, 2] + drag[i, 2]) + gz)
-    vel[i, 0] = vx
-    vel[i, 1] = vy
-    vel[i, 2] = vz
-    if rotate:
-        bb = b / (1.0 + c * torque[i, 3]) if implicit else b
-        omg[i, 0] += bb * torque[i, 0]
-        omg[i, 1] += bb * torque[i, 1]
-        omg[i, 2] += bb * torque[i, 2]
-    return vx, vy, vz
+        return vx + a * fx + gx, vy + a * fy + gy, vz + a * fz + gz
+    return vx + (a * fx + gx), vy + (a * fy + gy), vz + (a * fz + gz)
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def spin_kick(gamma_sum, k):
+    """Spin change per torque (1/(kg m2) s) of a kick with the constants k, given the sum of gamma_t
+    of the grain's viscous contacts (N s/m): divided by 1 + kick_dt r^2/I sum(gamma_t) with
+    numerics.implicit_spin."""
+    _, b, c, _, _, _, _, implicit = k
+    return b / (1.0 + c * gamma_sum) if implicit else b

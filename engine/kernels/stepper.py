@@ -42,10 +42,18 @@ def _kick(grains, n, p, kick_dt):
     """Velocity update of the dynamic grains by kick_dt (laws.kick)."""
     vel, omg, force, drag, torque, kin = grains.vel, grains.omg, grains.force, grains.drag, grains.torque, grains.kin
     k = laws.kick_constants(p, kick_dt)
+    rotate = k[6]
     for i in range(n):
         if kin[i]:
             continue
-        laws.kick(vel, omg, force, drag, torque, i, k, False)
+        vel[i, 0], vel[i, 1], vel[i, 2] = laws.velocity_kick(
+            vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0], force[i, 1] + drag[i, 1],
+            force[i, 2] + drag[i, 2], k, False)
+        if rotate:
+            bb = laws.spin_kick(torque[i, 3], k)
+            omg[i, 0] += bb * torque[i, 0]
+            omg[i, 1] += bb * torque[i, 1]
+            omg[i, 2] += bb * torque[i, 2]
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
@@ -61,6 +69,7 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     dt = p[P.DT]
     r = p[P.RADIUS]
     k = laws.kick_constants(p, kick_dt)
+    rotate = k[6]
     feed_dx = p[P.FEED_SPEED] * dt
     limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
     outlet = p[P.TUBE_LENGTH]
@@ -74,7 +83,16 @@ def _kick_drift(grains, n, p, kick_dt, counters):
                 counters[P.RELEASED] += 1
                 need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
-            vx, vy, vz = laws.kick(vel, omg, force, drag, torque, i, k, True)
+            vx, vy, vz = laws.velocity_kick(vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0],
+                                            force[i, 1] + drag[i, 1], force[i, 2] + drag[i, 2], k, True)
+            vel[i, 0] = vx
+            vel[i, 1] = vy
+            vel[i, 2] = vz
+            if rotate:
+                bb = laws.spin_kick(torque[i, 3], k)
+                omg[i, 0] += bb * torque[i, 0]
+                omg[i, 1] += bb * torque[i, 1]
+                omg[i, 2] += bb * torque[i, 2]
             x = pos[i, 0] + dt * vx
             y = pos[i, 1] + dt * vy
             z = pos[i, 2] + dt * vz
