@@ -103,15 +103,16 @@ def _balance(nbr_start, contact_count, n, bounds):
 
 @nb.njit(cache=True, inline="always")
 def _contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
-    """The contact loop (_contacts_range_with) compiled with the optional terms the case switches on."""
-    if p[P.ROLLING_RESISTANCE] > 0.0:
-        return _contacts_range_rolling(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque,
-                                       contact_count)
+    """The contact loop (_contacts_range_with), with the optional terms when the case switches one on."""
+    if laws.optional_terms(p):
+        return _contacts_range_optional(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque,
+                                        contact_count)
     return _contacts_range_plain(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count)
 
 
-def _contacts_range_with(rolling):
-    """The contact loop with the rolling resistance compiled in or out (a constant of the closure)."""
+def _contacts_range_with(optional):
+    """The contact loop with the optional contact terms (laws.optional_terms) compiled in or out
+    (a constant of the closure)."""
 
     @nb.njit(cache=True, fastmath=FASTMATH)
     def contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
@@ -176,7 +177,7 @@ def _contacts_range_with(rolling):
                 fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
                     fn, nx, ny, nz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
                     omg[i, 2] + omg[j, 2], omg[i, 0] - omg[j, 0], omg[i, 1] - omg[j, 1], omg[i, 2] - omg[j, 2],
-                    pair, rolling)
+                    pair, optional)
                 gsum += g  # in a register: only its stores below are gated on `implicit`
                 # force on i; j gets the opposite
                 fxi += fx
@@ -215,7 +216,7 @@ def _contacts_range_with(rolling):
                     max_overlap = max(max_overlap, delta)
                     fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
                         delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
-                        omg[i, 0], omg[i, 1], omg[i, 2], wall, rolling)
+                        omg[i, 0], omg[i, 1], omg[i, 2], wall, optional)
                     wall_normal[i] = fn
                     gsum += g
                     fxi += fx
@@ -229,7 +230,7 @@ def _contacts_range_with(rolling):
                     max_overlap = max(max_overlap, delta)
                     fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
                         delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
-                        omg[i, 0], omg[i, 1], omg[i, 2], wall, rolling)
+                        omg[i, 0], omg[i, 1], omg[i, 2], wall, optional)
                     gsum += g
                     fxi += fx
                     fyi += fy
@@ -253,4 +254,4 @@ def _contacts_range_with(rolling):
 
 
 _contacts_range_plain = _contacts_range_with(False)
-_contacts_range_rolling = _contacts_range_with(True)
+_contacts_range_optional = _contacts_range_with(True)

@@ -39,6 +39,13 @@ def wall_constants(p):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def optional_terms(p):
+    """Whether a case switches on a contact term that is not in the papers' model (then the
+    contact loop with the optional terms runs)."""
+    return p[P.ROLLING_RESISTANCE] > 0.0
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
     """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
     if the contact is in its viscous (sticking) branch, else 0."""
@@ -74,16 +81,16 @@ def normal_force(delta, vn, c):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, rolling):
+def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional):
     """Force and torques of a contact with normal force fn > 0 on the first body, along the unit
     normal n (first -> second); v the relative velocity v1 - v2, w the spin sum w1 + w2 of the
     contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
 
     Returns (F, T1, T2, g): the force and torque on the first body, the torque on the second (the
     first's tangential torque minus its rolling torque; the second's force is -F), and gamma_t if
-    the tangential force is in its viscous branch (else 0). `rolling` switches the rolling
-    resistance on; it is a compile-time constant of the calling loop (contacts.py compiles one
-    loop per switch), so that the loop without it keeps its arithmetic and speed.
+    the tangential force is in its viscous branch (else 0). `optional` adds the optional terms
+    (optional_terms); it is a compile-time constant of the calling loop (contacts.py compiles one
+    loop with them and one without), so that the loop without them keeps its arithmetic and speed.
     """
     r, _, _, mu, gt, mu_r, cap = c
     ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
@@ -95,14 +102,14 @@ def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, rol
     tx = r * (ny * ftz - nz * fty)
     ty = r * (nz * ftx - nx * ftz)
     tz = r * (nx * fty - ny * ftx)
-    if rolling:
+    if optional:  # each term is zero when its key is 0
         mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap)
         return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
     return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, rolling):
+def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional):
     """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall) at
     overlap delta (m); c = wall_constants.
 
@@ -114,7 +121,7 @@ def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, rolling):
     if fn <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
-                                                        c, rolling)
+                                                        c, optional)
     return fn, fx, fy, fz, tx, ty, tz, g
 
 
