@@ -618,19 +618,19 @@ def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accum
     advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT] selects the split
     scheme, which uses wvec as its work array (GasField sizes wvec for both).
     """
-    P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g = gas
-    deposit(pos, vel, n, g, dep)
-    update_fields(dep, area, g, phi, kappa, u)
-    volume_sources(u, area, ay, az, g, feed_volume_rate, src)
+    g = gas.g
+    deposit(pos, vel, n, g, gas.dep)
+    update_fields(gas.dep, gas.area, g, gas.phi, gas.kappa, gas.u)
+    volume_sources(gas.u, gas.area, gas.ay, gas.az, g, feed_volume_rate, gas.src)
     h = dt / substeps
     if g[G_SPLIT] > 0.5:
-        nx, ny, nz = P.shape
+        nx, ny, nz = gas.P.shape
         longest = max(nx, max(ny, nz))
-        work = wvec.reshape(wvec.size)[:10 * longest].reshape((10, longest))
+        work = gas.wvec.reshape(gas.wvec.size)[:10 * longest].reshape((10, longest))
         for _ in range(substeps):
-            gas_step_split(P, phi, kappa, src, area, ay, az, g, h, theta, work)
+            gas_step_split(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, work)
     else:
         for _ in range(substeps):
-            gas_step(P, phi, kappa, src, area, ay, az, g, h, theta, wmat, wvec)
-    pressure_gradient(P, phi, kappa, u, g, feed_volume_rate, nodal)
-    drag_forces(pos, n, nodal, g, force, accumulate)
+            gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, gas.wmat, gas.wvec)
+    pressure_gradient(gas.P, gas.phi, gas.kappa, gas.u, g, feed_volume_rate, gas.nodal)
+    drag_forces(pos, n, gas.nodal, g, force, accumulate)
