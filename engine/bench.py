@@ -160,13 +160,12 @@ def gas_cost_split(steps: int, repeats: int) -> dict:
     # another specialisation inside the timing)
     positions, velocities = np.array(sim.positions), np.array(sim.velocities)
     grains = len(positions)
-    arrays = (gas.P, gas.dep, gas.phi, gas.kappa, gas.u, gas.src, gas.nodal, gas.wmat, gas.wvec,
-              gas.area, gas.ay, gas.az, gas.g)
+    arrays = gas.arrays()
     drag = np.zeros_like(positions)
 
     def couple_steps():
         for _ in range(steps):
-            gas_kernels.couple(positions, velocities, grains, *arrays, dt, 1, 1.0, 0.0, drag, False)
+            gas_kernels.couple(positions, velocities, grains, arrays, dt, 1, 1.0, 0.0, drag, False)
 
     def solve_steps():
         for _ in range(steps):

@@ -111,6 +111,11 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "(the cap lies above gamma_t at the default step). A packed bed needs gamma_t dt/(m/7) <= "
         "0.47 or numerics.implicit_spin (docs/performance.md).",
         low=0.0, high=1e3),
+    Key("particles.rolling_resistance", 0.0, "1",
+        "Rolling-resistance coefficient mu_r: each contact (grain-grain and grain-wall) exerts a "
+        "torque -min(mu_r r F_n, I_rel |w_rel|/dt) w_rel/|w_rel| against the relative spin w_rel "
+        "(I_rel = I/2 between grains, I at the wall: one step cannot reverse the spin). Not part of "
+        "the papers' model; 0 switches it off.", low=0.0, high=1.0),
     Key("wall.friction", 0.5, "1", "Coulomb coefficient mu_w between grains and the tube wall.",
         low=0.0, high=10.0),
     Key("wall.restitution", 0.5, "1", "Normal restitution coefficient of a head-on grain-wall impact.",

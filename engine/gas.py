@@ -210,6 +210,10 @@ class GasField:
         self._feed_volume_rate = float(value)
         self.update()
 
+    def arrays(self) -> K.GasArrays:
+        """The field's arrays as the kernels take them (`couple`, the grain time loop)."""
+        return K.GasArrays(*(getattr(self, name) for name in K.GasArrays._fields))
+
     def update(self):
         """Recompute phi, kappa, u and the sources from the deposit `dep`."""
         K.update_fields(self.dep, self.area, self.g, self.phi, self.kappa, self.u)
@@ -302,29 +306,28 @@ def benchmark(repeats=2000, grains=3200, seed=0):
     f.deposit(pos, vel)
 
     @nb.njit
-    def run(which, reps, theta, pos, vel, force, P, dep, phi, kappa, u, src, nodal, wmat, wvec,
-            work, area, ay, az, g):
+    def run(which, reps, theta, pos, vel, force, gas, work):
+        g = gas.g
         for _ in range(reps):
             if which == 0:
-                K.gas_step(P, phi, kappa, src, area, ay, az, g, 1e-5, theta, wmat, wvec)
+                K.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5, theta, gas.wmat,
+                           gas.wvec)
             elif which == 1:
-                K.gas_step_split(P, phi, kappa, src, area, ay, az, g, 1e-5, theta, work)
+                K.gas_step_split(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5, theta, work)
             elif which == 2:
-                K.deposit(pos, vel, len(pos), g, dep)
+                K.deposit(pos, vel, len(pos), g, gas.dep)
             elif which == 3:
-                K.update_fields(dep, area, g, phi, kappa, u)
-                K.volume_sources(u, area, ay, az, g, 0.0, src)
-                K.pressure_gradient(P, phi, kappa, u, g, 0.0, nodal)
+                K.update_fields(gas.dep, gas.area, g, gas.phi, gas.kappa, gas.u)
+                K.volume_sources(gas.u, gas.area, gas.ay, gas.az, g, 0.0, gas.src)
+                K.pressure_gradient(gas.P, gas.phi, gas.kappa, gas.u, g, 0.0, gas.nodal)
             elif which == 4:
-                K.drag_forces(pos, len(pos), nodal, g, force, False)
+                K.drag_forces(pos, len(pos), gas.nodal, g, force, False)
             else:
-                K.couple(pos, vel, len(pos), P, dep, phi, kappa, u, src, nodal, wmat, wvec, area,
-                         ay, az, g, 1e-5, 1, theta, 0.0, force, False)
+                K.couple(pos, vel, len(pos), gas, 1e-5, 1, theta, 0.0, force, False)
 
     names = ["gas_step", "gas_step_split", "deposit", "fields_sources_gradient", "drag_forces",
              "couple"]
-    arrays = (pos, vel, force, f.P, f.dep, f.phi, f.kappa, f.u, f.src, f.nodal, f.wmat, f.wvec,
-              f.work, f.area, f.ay, f.az, f.g)
+    arrays = (pos, vel, force, f.arrays(), f.work)
     out = {}
     for which, name in enumerate(names):
         run(which, 1, f.theta, *arrays)

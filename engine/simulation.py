@@ -15,6 +15,7 @@ from .kernels import gas as gas_kernels
 from .kernels import params as P
 from .kernels import slices as S
 from .kernels.contacts import evaluate_contacts
+from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
 
 PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
@@ -101,6 +102,8 @@ class Simulation:
         # the volume of the entering grains joins the inlet gas flux (gas.inlet_displaced_volume)
         displaced = self.feed.enabled and c["gas.inlet_displaced_volume"]
         p[P.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if displaced else 0.0
+        for slot, key in P.FROM_CASE.items():
+            p[slot] = c[key]
         self._p = p
         self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
 
@@ -115,10 +118,15 @@ class Simulation:
                         phi_max=c["gas.porosity_max"], face=c["gas.face_permeability"],
                         deposit=c["gas.deposit_volume"], scheme=c["gas.scheme"])
 
-    def _gas_arrays(self) -> tuple:
-        gas = self.gas
-        return (gas.P, gas.dep, gas.phi, gas.kappa, gas.u, gas.src, gas.nodal, gas.wmat, gas.wvec,
-                gas.area, gas.ay, gas.az, gas.g)
+    def _grains(self) -> Grains:
+        """The per-grain arrays as the kernels take them."""
+        return Grains(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
+                      self._wall_normal, self._gid, self._kin, self._pos_ref)
+
+    def _neighbors(self) -> Neighbors:
+        """The cell grid and neighbour list as the kernels take them."""
+        return Neighbors(self._shape, self._cell_start, self._cell_of, self._order, self._tmp3, self._tmpi,
+                         self._nbr_start, self._nbr)
 
     def _initial_capacity(self) -> int:
         c = self.case
@@ -149,13 +157,13 @@ class Simulation:
         self._chunks = self._chunk_arrays(cap)
         self._dirty = True
 
-    def _chunk_arrays(self, cap: int) -> tuple:
+    def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
         rows = cap if self.threads > 1 else 1
         # spill torque rows hold the three torques and the viscous gamma_t sum (numerics.implicit_spin)
-        return (np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 4)),
-                np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
-                np.zeros(rows, dtype=np.int64))
+        return Chunks(np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 4)),
+                      np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
+                      np.zeros(rows, dtype=np.int64))
 
     def set_threads(self, threads: int) -> None:
         """Compute the contact forces on `threads` numba threads from now on."""
@@ -222,19 +230,14 @@ class Simulation:
     def _prepare(self) -> None:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
-        evaluate_contacts(self._pos, self._vel, self._omg, self._kin, int(self._n[0]), self._nbr_start,
-                          self._nbr, self._p, self._force, self._torque, self._wall_normal, self._diag,
+        evaluate_contacts(self._grains(), int(self._n[0]), self._nbr_start, self._nbr, self._p, self._diag,
                           self._chunks)
         self._dirty = False
 
     def _rebuild(self) -> None:
         """Sort, drop outflow and rebuild the neighbour list, growing the list until it fits."""
         while True:
-            self._n[0] = rebuild(self._pos, self._vel, self._omg, self._drag, self._gid, self._kin,
-                                 int(self._n[0]),
-                                 self._pos_ref, self._p, self._shape, self._cell_start, self._cell_of,
-                                 self._order, self._tmp3, self._tmpi, self._nbr_start, self._nbr,
-                                 self._counters)
+            self._n[0] = rebuild(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters)
             if not self._counters[P.OVERFLOW]:
                 return
             self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
@@ -255,16 +258,12 @@ class Simulation:
             self._refill_feed(feed_travel)
             if self._dirty:
                 self._prepare()
-            taken = advance(steps, self._n, self._pos, self._vel, self._omg, self._force, self._drag,
-                            self._torque, self._wall_normal, self._gid, self._kin, self._pos_ref, self._p, self._shape, self._cell_start,
-                            self._cell_of, self._order, self._tmp3, self._tmpi, self._nbr_start,
-                            self._nbr, self._counters, self._diag, self._gas_arrays(), self._chunks)
+            taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
+                            self.gas.arrays(), self._chunks)
             if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
-                finish_step(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
-                            self._wall_normal, self._kin,
-                            int(self._n[0]), self._nbr_start, self._nbr, self._p, self._counters,
+                finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
                             self._diag, self._chunks)
                 taken += 1
             self._steps += taken

@@ -1,58 +1,19 @@
 """Contact forces: grain-grain (half neighbour list), grain-cylinder wall and the inlet wall at x = 0.
 
-Normal: F_n = max(0, k_n delta + gamma_n v_n) along the line of centres (never attractive).
-Tangential: F_t = -min(mu F_n, gamma_t |v_t|) v_t/|v_t| at the contact point (no history), with
-v_t the tangential slip velocity of the contact point including rotation; gamma_t arrives capped at
-m_slip/dt so that the explicit dashpot cannot reverse a slip (engine/contact.py).
+The loops over contacts; the laws they apply are in laws.py. `grains` is a state.Grains.
 """
 
 import math
 
 import numba as nb
 
+from . import laws
 from . import params as P
-
-# fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
-FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
-
-
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def _tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
-    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
-    if the contact is in its viscous (sticking) branch, else 0."""
-    vcn = vcx * nx + vcy * ny + vcz * nz
-    vtx = vcx - vcn * nx
-    vty = vcy - vcn * ny
-    vtz = vcz - vcn * nz
-    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
-    if vt <= 0.0:
-        return 0.0, 0.0, 0.0, gt
-    fv = gt * vt
-    fc = mu * fn
-    ft = min(fc, fv)
-    s = -ft / vt
-    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
-
-
-@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def _wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, r, kn, gn, mu, gt):
-    """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall).
-
-    Returns (F_n, F_x, F_y, F_z, T_x, T_y, T_z, g): normal force magnitude (0 when separating), force
-    and torque on the grain, and gt if the tangential force is in its viscous branch (else 0).
-    Inlined with constant normals, the zero components fold away.
-    """
-    fn = kn * delta + gn * (vx * nx + vy * ny + vz * nz)
-    if fn <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    ftx, fty, ftz, g = _tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                   vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
-    return (fn, -fn * nx + ftx, -fn * ny + fty, -fn * nz + ftz,
-            r * (ny * ftz - nz * fty), r * (nz * ftx - nx * ftz), r * (nx * fty - ny * ftx), g)
+from .laws import FASTMATH
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag):
+def contact_forces(grains, n, nbr_start, nbr, p, diag):
     """Zero, then accumulate the grain-grain, cylinder-wall and inlet-wall forces and torques.
 
     diag[0]: max overlap of dynamic grains (pairs and walls), diag[1]: max overlap with a feed
@@ -61,29 +22,25 @@ def contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall
     wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
     Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
     """
-    max_overlap, max_feed, _ = _contacts_range(0, n, pos, vel, omg, kin, nbr_start, nbr, p, force, torque,
-                                               wall_normal, force, torque, nbr_start[:0])
+    max_overlap, max_feed, _ = _contacts_range(0, n, grains, nbr_start, nbr, p, grains.force, grains.torque,
+                                               nbr_start[:0])
     diag[0] = max_overlap
     diag[1] = max_feed
 
 
 @nb.njit(cache=True)
-def evaluate_contacts(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag, chunks):
-    """contact_forces, on threads when chunks = (spill_force, spill_torque, bounds, chunk_diag,
-    contact_count) has more than one chunk (bounds holds nchunks + 1 entries); see
-    contact_forces_chunked."""
-    spill_force, spill_torque, bounds, chunk_diag, contact_count = chunks
-    if bounds.shape[0] > 2:
-        contact_forces_chunked(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag,
-                               spill_force, spill_torque, bounds, chunk_diag, contact_count)
+def evaluate_contacts(grains, n, nbr_start, nbr, p, diag, chunks):
+    """contact_forces, on threads when chunks (a state.Chunks) has more than one chunk (bounds holds
+    nchunks + 1 entries); see contact_forces_chunked."""
+    if chunks.bounds.shape[0] > 2:
+        contact_forces_chunked(grains, n, nbr_start, nbr, p, diag, chunks)
     else:
-        contact_forces(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag)
+        contact_forces(grains, n, nbr_start, nbr, p, diag)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, parallel=True)
-def contact_forces_chunked(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag,
-                           spill_force, spill_torque, bounds, chunk_diag, contact_count):
-    """contact_forces on threads: grains [bounds[c], bounds[c+1]) are chunk c.
+def contact_forces_chunked(grains, n, nbr_start, nbr, p, diag, chunks):
+    """contact_forces on threads (chunks: a state.Chunks): grains [bounds[c], bounds[c+1]) are chunk c.
 
     The half list gives chunk c pairs (i, j > i) whose j may lie in a later chunk: those reactions go
     to chunk c's spill arrays (all zero between calls) and are added afterwards in chunk order, so
@@ -91,11 +48,14 @@ def contact_forces_chunked(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torq
     contact_count[i] (touching pairs of i's list plus its walls) is kept from call to call to balance
     the chunks.
     """
+    spill_force, spill_torque, bounds, chunk_diag, contact_count = chunks
+    force = grains.force
+    torque = grains.torque
     nchunks = bounds.shape[0] - 1
     _balance(nbr_start, contact_count, n, bounds)
     for c in nb.prange(nchunks):
-        a, b, top = _contacts_range(bounds[c], bounds[c + 1], pos, vel, omg, kin, nbr_start, nbr, p, force,
-                                    torque, wall_normal, spill_force[c], spill_torque[c], contact_count)
+        a, b, top = _contacts_range(bounds[c], bounds[c + 1], grains, nbr_start, nbr, p, spill_force[c],
+                                    spill_torque[c], contact_count)
         chunk_diag[c, 0] = a
         chunk_diag[c, 1] = b
         chunk_diag[c, 2] = top
@@ -141,150 +101,157 @@ def _balance(nbr_start, contact_count, n, bounds):
     bounds[nchunks] = n
 
 
-@nb.njit(cache=True, fastmath=FASTMATH)
-def _contacts_range(lo, hi, pos, vel, omg, kin, nbr_start, nbr, p, force, torque, wall_normal,
-                    spill_force, spill_torque, contact_count):
-    """Forces and torques of grains lo..hi-1 and their list pairs; zeroes rows lo..hi-1 first.
+@nb.njit(cache=True, inline="always")
+def _contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
+    """The contact loop (_contacts_range_with), with the optional terms when the case switches one on."""
+    if laws.optional_terms(p):
+        return _contacts_range_optional(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque,
+                                        contact_count)
+    return _contacts_range_plain(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count)
 
-    Reactions on j >= hi go to spill_force/spill_torque (row j). contact_count[i] (if not empty):
-    touching pairs of grain i's list plus its wall contacts. Returns (max overlap of dynamic
-    grains, max overlap with a feed grain, one past the largest spilled j or hi). The walls of
-    grain i are handled in the same pass as its pairs, so that its force sums stay in registers
-    (one pass instead of two: 1.24x faster on the standard packing, docs/performance.md).
-    """
-    force[lo:hi] = 0.0
-    torque[lo:hi] = 0.0
-    r = p[P.RADIUS]
-    dia = 2.0 * r
-    kn = p[P.KN]
-    gn = p[P.GN_PAIR]
-    gt = p[P.GT]
-    gt_wall = p[P.GT_WALL]
-    mu = p[P.MU_PAIR]
-    gn_wall = p[P.GN_WALL]
-    mu_wall = p[P.MU_WALL]
-    inner = p[P.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
-    max_overlap = 0.0
-    max_feed = 0.0
-    top = hi
-    counting = contact_count.shape[0] > 0
-    implicit = p[P.IMPLICIT_SPIN] > 0.0  # torque[:, 3] is only read (and summed) then
-    for i in range(lo, hi):
-        touching = 0
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        zi = pos[i, 2]
-        fxi = 0.0
-        fyi = 0.0
-        fzi = 0.0
-        txi = 0.0
-        tyi = 0.0
-        tzi = 0.0
-        gsum = 0.0
-        for k in range(nbr_start[i], nbr_start[i + 1]):
-            j = nbr[k]
-            dx = pos[j, 0] - xi
-            dy = pos[j, 1] - yi
-            dz = pos[j, 2] - zi
-            dist2 = dx * dx + dy * dy + dz * dz
-            if dist2 >= dia * dia:
-                continue
-            touching += 1
-            dist = math.sqrt(dist2)
-            inv = 1.0 / dist
-            nx = dx * inv
-            ny = dy * inv
-            nz = dz * inv
-            delta = dia - dist
-            if kin[i] or kin[j]:
-                max_feed = max(max_feed, delta)
-            else:
-                max_overlap = max(max_overlap, delta)
-            vrx = vel[i, 0] - vel[j, 0]
-            vry = vel[i, 1] - vel[j, 1]
-            vrz = vel[i, 2] - vel[j, 2]
-            fn = kn * delta + gn * (vrx * nx + vry * ny + vrz * nz)
-            if fn <= 0.0:
-                continue
-            wx = omg[i, 0] + omg[j, 0]
-            wy = omg[i, 1] + omg[j, 1]
-            wz = omg[i, 2] + omg[j, 2]
-            ftx, fty, ftz, g = _tangential(vrx + r * (wy * nz - wz * ny), vry + r * (wz * nx - wx * nz),
-                                           vrz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
-            gsum += g  # in a register: only its stores below are gated on `implicit`
-            # force on i; j gets the opposite; both get the same torque r n x F_t
-            fx = -fn * nx + ftx
-            fy = -fn * ny + fty
-            fz = -fn * nz + ftz
-            tx = r * (ny * ftz - nz * fty)
-            ty = r * (nz * ftx - nx * ftz)
-            tz = r * (nx * fty - ny * ftx)
-            fxi += fx
-            fyi += fy
-            fzi += fz
-            txi += tx
-            tyi += ty
-            tzi += tz
-            # written out twice on purpose: an inlined helper measured slower on threads (docs/performance.md)
-            if j < hi:
-                force[j, 0] -= fx
-                force[j, 1] -= fy
-                force[j, 2] -= fz
-                torque[j, 0] += tx
-                torque[j, 1] += ty
-                torque[j, 2] += tz
-                if implicit:
-                    torque[j, 3] += g
-            else:
-                spill_force[j, 0] -= fx
-                spill_force[j, 1] -= fy
-                spill_force[j, 2] -= fz
-                spill_torque[j, 0] += tx
-                spill_torque[j, 1] += ty
-                spill_torque[j, 2] += tz
-                if implicit:
-                    spill_torque[j, 3] += g
-                top = max(top, j + 1)
-        wall_normal[i] = 0.0
-        if not kin[i]:
-            rho2 = yi * yi + zi * zi
-            if rho2 > inner * inner:
-                rho = math.sqrt(rho2)
+
+def _contacts_range_with(optional):
+    """The contact loop with the optional contact terms (laws.optional_terms) compiled in or out
+    (a constant of the closure)."""
+
+    @nb.njit(cache=True, fastmath=FASTMATH)
+    def contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
+        """Forces and torques of grains lo..hi-1 and their list pairs; zeroes rows lo..hi-1 first.
+
+        Reactions on j >= hi go to spill_force/spill_torque (row j). contact_count[i] (if not empty):
+        touching pairs of grain i's list plus its wall contacts. Returns (max overlap of dynamic
+        grains, max overlap with a feed grain, one past the largest spilled j or hi). The walls of
+        grain i are handled in the same pass as its pairs, so that its force sums stay in registers
+        (one pass instead of two: 1.24x faster on the standard packing, docs/performance.md).
+        """
+        pos, vel, omg, force, _, torque, wall_normal, _, kin, _ = grains
+        force[lo:hi] = 0.0
+        torque[lo:hi] = 0.0
+        pair = laws.pair_constants(p)
+        wall = laws.wall_constants(p)
+        r = p[P.RADIUS]
+        dia = 2.0 * r
+        inner = p[P.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
+        max_overlap = 0.0
+        max_feed = 0.0
+        top = hi
+        counting = contact_count.shape[0] > 0
+        implicit = p[P.IMPLICIT_SPIN] > 0.0  # torque[:, 3] is only read (and summed) then
+        for i in range(lo, hi):
+            touching = 0
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            zi = pos[i, 2]
+            fxi = 0.0
+            fyi = 0.0
+            fzi = 0.0
+            txi = 0.0
+            tyi = 0.0
+            tzi = 0.0
+            gsum = 0.0
+            for k in range(nbr_start[i], nbr_start[i + 1]):
+                j = nbr[k]
+                dx = pos[j, 0] - xi
+                dy = pos[j, 1] - yi
+                dz = pos[j, 2] - zi
+                dist2 = dx * dx + dy * dy + dz * dz
+                if dist2 >= dia * dia:
+                    continue
                 touching += 1
-                delta = rho - inner
-                max_overlap = max(max_overlap, delta)
-                fn, fx, fy, fz, tx, ty, tz, g = _wall_contact(
-                    delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
-                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
-                wall_normal[i] = fn
-                gsum += g
+                dist = math.sqrt(dist2)
+                inv = 1.0 / dist
+                nx = dx * inv
+                ny = dy * inv
+                nz = dz * inv
+                delta = dia - dist
+                if kin[i] or kin[j]:
+                    max_feed = max(max_feed, delta)
+                else:
+                    max_overlap = max(max_overlap, delta)
+                vrx = vel[i, 0] - vel[j, 0]
+                vry = vel[i, 1] - vel[j, 1]
+                vrz = vel[i, 2] - vel[j, 2]
+                fn = laws.normal_force(delta, vrx * nx + vry * ny + vrz * nz, pair)
+                if fn <= 0.0:
+                    continue
+                fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
+                    fn, nx, ny, nz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
+                    omg[i, 2] + omg[j, 2], omg[i, 0] - omg[j, 0], omg[i, 1] - omg[j, 1], omg[i, 2] - omg[j, 2],
+                    pair, optional)
+                gsum += g  # in a register: only its stores below are gated on `implicit`
+                # force on i; j gets the opposite
                 fxi += fx
                 fyi += fy
                 fzi += fz
                 txi += tx
                 tyi += ty
                 tzi += tz
-            if xi < r:  # the inlet wall at x = 0
-                delta = r - xi
-                max_overlap = max(max_overlap, delta)
-                fn, fx, fy, fz, tx, ty, tz, g = _wall_contact(
-                    delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
-                    omg[i, 0], omg[i, 1], omg[i, 2], r, kn, gn_wall, mu_wall, gt_wall)
-                gsum += g
-                fxi += fx
-                fyi += fy
-                fzi += fz
-                txi += tx
-                tyi += ty
-                tzi += tz
-        force[i, 0] += fxi
-        force[i, 1] += fyi
-        force[i, 2] += fzi
-        torque[i, 0] += txi
-        torque[i, 1] += tyi
-        torque[i, 2] += tzi
-        if implicit:
-            torque[i, 3] += gsum
-        if counting:
-            contact_count[i] = touching
-    return max_overlap, max_feed, top
+                # written out twice on purpose: an inlined helper measured slower on threads (docs/performance.md)
+                if j < hi:
+                    force[j, 0] -= fx
+                    force[j, 1] -= fy
+                    force[j, 2] -= fz
+                    torque[j, 0] += tjx
+                    torque[j, 1] += tjy
+                    torque[j, 2] += tjz
+                    if implicit:
+                        torque[j, 3] += g
+                else:
+                    spill_force[j, 0] -= fx
+                    spill_force[j, 1] -= fy
+                    spill_force[j, 2] -= fz
+                    spill_torque[j, 0] += tjx
+                    spill_torque[j, 1] += tjy
+                    spill_torque[j, 2] += tjz
+                    if implicit:
+                        spill_torque[j, 3] += g
+                    top = max(top, j + 1)
+            wall_normal[i] = 0.0
+            if not kin[i]:
+                rho2 = yi * yi + zi * zi
+                if rho2 > inner * inner:
+                    rho = math.sqrt(rho2)
+                    touching += 1
+                    delta = rho - inner
+                    max_overlap = max(max_overlap, delta)
+                    fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
+                        delta, 0.0, yi / rho, zi / rho, vel[i, 0], vel[i, 1], vel[i, 2],
+                        omg[i, 0], omg[i, 1], omg[i, 2], wall, optional)
+                    wall_normal[i] = fn
+                    gsum += g
+                    fxi += fx
+                    fyi += fy
+                    fzi += fz
+                    txi += tx
+                    tyi += ty
+                    tzi += tz
+                if xi < r:  # the inlet wall at x = 0
+                    delta = r - xi
+                    max_overlap = max(max_overlap, delta)
+                    fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
+                        delta, -1.0, 0.0, 0.0, vel[i, 0], vel[i, 1], vel[i, 2],
+                        omg[i, 0], omg[i, 1], omg[i, 2], wall, optional)
+                    gsum += g
+                    fxi += fx
+                    fyi += fy
+                    fzi += fz
+                    txi += tx
+                    tyi += ty
+                    tzi += tz
+            force[i, 0] += fxi
+            force[i, 1] += fyi
+            force[i, 2] += fzi
+            torque[i, 0] += txi
+            torque[i, 1] += tyi
+            torque[i, 2] += tzi
+            if implicit:
+                torque[i, 3] += gsum
+            if counting:
+                contact_count[i] = touching
+        return max_overlap, max_feed, top
+
+    return contacts_range
+
+
+_contacts_range_plain = _contacts_range_with(False)
+_contacts_range_optional = _contacts_range_with(True)

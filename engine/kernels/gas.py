@@ -14,7 +14,12 @@ in this order:
 Every kernel is allocation-free; work arrays are passed in.
 """
 
+from collections import namedtuple
+
 import numba as nb
+
+# The arrays of one gas field, in the order the kernels take them (engine.gas.GasField.arrays)
+GasArrays = namedtuple("GasArrays", "P dep phi kappa u src nodal wmat wvec area ay az g")
 
 # fastmath without nnan/ninf so that isfinite guards keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -606,26 +611,26 @@ def gas_content(P, phi, area, g):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def couple(pos, vel, n, P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
-           dt, substeps, theta, feed_volume_rate, force, accumulate):
+def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accumulate):
     """One grain step of the gas: deposit, fields, `substeps` gas steps of dt/substeps, drag forces.
 
-    The five kernels above in the required order; P is advanced in place and the drag goes to
-    force (see drag_forces).  g[G_SPLIT] selects the split scheme, which uses wvec as its work
-    array (GasField sizes wvec for both).
+    The five kernels above in the required order on the arrays of `gas` (a GasArrays); P is
+    advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT] selects the split
+    scheme, which uses wvec as its work array (GasField sizes wvec for both).
     """
-    deposit(pos, vel, n, g, dep)
-    update_fields(dep, area, g, phi, kappa, u)
-    volume_sources(u, area, ay, az, g, feed_volume_rate, src)
+    g = gas.g
+    deposit(pos, vel, n, g, gas.dep)
+    update_fields(gas.dep, gas.area, g, gas.phi, gas.kappa, gas.u)
+    volume_sources(gas.u, gas.area, gas.ay, gas.az, g, feed_volume_rate, gas.src)
     h = dt / substeps
     if g[G_SPLIT] > 0.5:
-        nx, ny, nz = P.shape
+        nx, ny, nz = gas.P.shape
         longest = max(nx, max(ny, nz))
-        work = wvec.reshape(wvec.size)[:10 * longest].reshape((10, longest))
+        work = gas.wvec.reshape(gas.wvec.size)[:10 * longest].reshape((10, longest))
         for _ in range(substeps):
-            gas_step_split(P, phi, kappa, src, area, ay, az, g, h, theta, work)
+            gas_step_split(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, work)
     else:
         for _ in range(substeps):
-            gas_step(P, phi, kappa, src, area, ay, az, g, h, theta, wmat, wvec)
-    pressure_gradient(P, phi, kappa, u, g, feed_volume_rate, nodal)
-    drag_forces(pos, n, nodal, g, force, accumulate)
+            gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, gas.wmat, gas.wvec)
+    pressure_gradient(gas.P, gas.phi, gas.kappa, gas.u, g, feed_volume_rate, gas.nodal)
+    drag_forces(pos, n, gas.nodal, g, force, accumulate)

@@ -31,7 +31,11 @@ FEED_VOLUME_RATE = 25  # m_dot / rho_s, m3/s: gas displaced by the entering grai
 GT_WALL = 26         # tangential damping grain-wall, gamma_t capped at (2m/7)/dt, N s/m
 IMPLICIT_SPIN = 27   # 1.0: spin kicks scaled by 1/(1 + dt sum(gamma_t) r^2/I) of the viscous contacts
 FEED_BLOCK_STEPS = 28  # consecutive steps above FEED_MAX_OVERLAP that make the tube blocked
-NPARAMS = 29
+ROLLING_RESISTANCE = 29  # rolling-resistance coefficient mu_r (0: off)
+NPARAMS = 30
+
+# Slots that hold a case key's value as it is (filled by Simulation._setup_params)
+FROM_CASE = {ROLLING_RESISTANCE: "particles.rolling_resistance"}
 
 # Integer cell-grid shape vector
 NCX = 0

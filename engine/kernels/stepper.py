@@ -12,19 +12,22 @@ import math
 
 import numba as nb
 
+from . import laws
 from . import params as P
-from .contacts import FASTMATH, evaluate_contacts
+from .contacts import evaluate_contacts
 from .gas import couple
+from .laws import FASTMATH
 from .neighbors import build_neighbor_list, sort_and_compact
 
 
 @nb.njit(cache=True)
-def rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3, tmpi,
-            nbr_start, nbr, counters):
+def rebuild(grains, n, p, nbrs, counters):
     """Drop grains past the outlet, sort by cell, rebuild the neighbour list. Returns the new n.
 
-    On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbr and retries).
+    On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbrs.nbr and retries).
     """
+    pos, vel, omg, _, drag, _, _, gid, kin, pos_ref = grains
+    shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = nbrs
     n = sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
     pos_ref[:n] = pos[:n]
@@ -35,31 +38,26 @@ def rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cel
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _kick(vel, omg, force, drag, torque, kin, n, p, kick_dt):
-    """Velocity update of the dynamic grains by kick_dt (contacts, gas drag and gravity)."""
-    a = kick_dt / p[P.MASS]
-    b = kick_dt / p[P.INERTIA]
-    gx = kick_dt * p[P.GX]
-    gy = kick_dt * p[P.GY]
-    gz = kick_dt * p[P.GZ]
-    rotate = p[P.ROTATION] > 0.0
-    implicit = p[P.IMPLICIT_SPIN] > 0.0
-    c = kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA]
+def _kick(grains, n, p, kick_dt):
+    """Velocity update of the dynamic grains by kick_dt (laws.kick)."""
+    vel, omg, force, drag, torque, kin = grains.vel, grains.omg, grains.force, grains.drag, grains.torque, grains.kin
+    k = laws.kick_constants(p, kick_dt)
+    rotate = k[6]
     for i in range(n):
         if kin[i]:
             continue
-        vel[i, 0] += a * (force[i, 0] + drag[i, 0]) + gx
-        vel[i, 1] += a * (force[i, 1] + drag[i, 1]) + gy
-        vel[i, 2] += a * (force[i, 2] + drag[i, 2]) + gz
+        vel[i, 0], vel[i, 1], vel[i, 2] = laws.velocity_kick(
+            vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0], force[i, 1] + drag[i, 1],
+            force[i, 2] + drag[i, 2], k, False)
         if rotate:
-            bb = b / (1.0 + c * torque[i, 3]) if implicit else b
+            bb = laws.spin_kick(torque[i, 3], k)
             omg[i, 0] += bb * torque[i, 0]
             omg[i, 1] += bb * torque[i, 1]
             omg[i, 2] += bb * torque[i, 2]
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
-def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, counters):
+def _kick_drift(grains, n, p, kick_dt, counters):
     """Kick the dynamic grains by kick_dt, then move all grains one step; release feed grains fully
     inside the tube. One pass: the closing half kick of a step and the opening one of the next
     are merged into a single kick of dt.
@@ -67,16 +65,11 @@ def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt,
     Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin, left the tube or
     was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
+    pos, vel, omg, force, drag, torque, _, _, kin, pos_ref = grains
     dt = p[P.DT]
     r = p[P.RADIUS]
-    a = kick_dt / p[P.MASS]
-    b = kick_dt / p[P.INERTIA]
-    gx = kick_dt * p[P.GX]
-    gy = kick_dt * p[P.GY]
-    gz = kick_dt * p[P.GZ]
-    rotate = p[P.ROTATION] > 0.0
-    implicit = p[P.IMPLICIT_SPIN] > 0.0
-    c = kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA]
+    k = laws.kick_constants(p, kick_dt)
+    rotate = k[6]
     feed_dx = p[P.FEED_SPEED] * dt
     limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
     outlet = p[P.TUBE_LENGTH]
@@ -90,14 +83,13 @@ def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt,
                 counters[P.RELEASED] += 1
                 need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
-            vx = vel[i, 0] + a * (force[i, 0] + drag[i, 0]) + gx
-            vy = vel[i, 1] + a * (force[i, 1] + drag[i, 1]) + gy
-            vz = vel[i, 2] + a * (force[i, 2] + drag[i, 2]) + gz
+            vx, vy, vz = laws.velocity_kick(vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0],
+                                            force[i, 1] + drag[i, 1], force[i, 2] + drag[i, 2], k, True)
             vel[i, 0] = vx
             vel[i, 1] = vy
             vel[i, 2] = vz
             if rotate:
-                bb = b / (1.0 + c * torque[i, 3]) if implicit else b
+                bb = laws.spin_kick(torque[i, 3], k)
                 omg[i, 0] += bb * torque[i, 0]
                 omg[i, 1] += bb * torque[i, 1]
                 omg[i, 2] += bb * torque[i, 2]
@@ -124,44 +116,31 @@ def _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt,
 
 
 @nb.njit(cache=True)
-def advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
-            cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag, gas, chunks):
+def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks):
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
     The feed piston always moves (the papers' enforced mass flow); when it has pressed a grain deeper
     than p[FEED_MAX_OVERLAP] for p[FEED_BLOCK_STEPS] steps in a row, the step is completed and
-    counters[STATUS] = BLOCKED. `gas` is the
-    tuple of gas arrays (P, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g);
-    `chunks` the thread work arrays of evaluate_contacts.
+    counters[STATUS] = BLOCKED. `grains`, `nbrs` and `chunks` are the bundles of state.py, `gas`
+    a gas.GasArrays.
     """
-    return _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref,
-                    p, shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
-                    gas[0], gas[1], gas[2], gas[3], gas[4], gas[5], gas[6], gas[7], gas[8], gas[9],
-                    gas[10], gas[11], gas[12], chunks)
-
-
-@nb.njit(cache=True)
-def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, gid, kin, pos_ref, p, shape,
-             cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, counters, diag,
-             P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g, chunks):
     n = state_n[0]
     dt = p[P.DT]
     kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
     taken = 0
     for _ in range(nsteps):
-        need = _kick_drift(pos, vel, omg, force, drag, torque, kin, n, pos_ref, p, kick_dt, counters)
+        need = _kick_drift(grains, n, p, kick_dt, counters)
         if counters[P.STATUS] != P.OK:
             break
         if need:
-            n = rebuild(pos, vel, omg, drag, gid, kin, n, pos_ref, p, shape, cell_start, cell_of, order, tmp3,
-                        tmpi, nbr_start, nbr, counters)
+            n = rebuild(grains, n, p, nbrs, counters)
             if counters[P.OVERFLOW]:
                 break  # velocities are at the half step: the caller's finish_step completes it
         if p[P.GAS_ON] > 0.0 and counters[P.STEPS] % int(p[P.GAS_INTERVAL]) == 0:
-            couple(pos, vel, n, P_gas, dep, phi, kappa, u, src, nodal, wmat, wvec, area, ay, az, g,
-                   dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA], p[P.FEED_VOLUME_RATE], drag, False)
-        _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks)
+            couple(grains.pos, grains.vel, n, gas, dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA],
+                   p[P.FEED_VOLUME_RATE], grains.drag, False)
+        _forces(grains, n, p, nbrs, counters, diag, chunks)
         taken += 1
         kick_dt = dt
         if diag[P.DIAG_FEED_OVERLAP] <= p[P.FEED_MAX_OVERLAP]:
@@ -172,20 +151,21 @@ def _advance(nsteps, state_n, pos, vel, omg, force, drag, torque, wall_normal, g
                 counters[P.STATUS] = P.BLOCKED
                 break
     if taken > 0 and (taken == nsteps or counters[P.STATUS] == P.BLOCKED):
-        _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * dt)  # closing half kick: full-step velocities
+        _kick(grains, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
 
 
 @nb.njit(cache=True)
-def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks):
+def _forces(grains, n, p, nbrs, counters, diag, chunks):
     """Forces at the new positions; ends a step except for its closing half kick."""
-    evaluate_contacts(pos, vel, omg, kin, n, nbr_start, nbr, p, force, torque, wall_normal, diag, chunks)
+    evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks)
     # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
     # so that the run guard sees every step, not only a frame's last
     diag[P.DIAG_RUNNING_MAX] = max(diag[P.DIAG_RUNNING_MAX], diag[P.DIAG_OVERLAP], diag[P.DIAG_FEED_OVERLAP])
     if p[P.FEED_SPEED] > 0.0:
         # the feed grains carry the reactions of their contacts: minus their sum is the piston's push
+        kin, force = grains.kin, grains.force
         push = 0.0
         for i in range(n):
             if kin[i]:
@@ -195,8 +175,7 @@ def _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p
 
 
 @nb.njit(cache=True)
-def finish_step(pos, vel, omg, force, drag, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag,
-                chunks):
+def finish_step(grains, n, p, nbrs, counters, diag, chunks):
     """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
-    _forces(pos, vel, omg, force, torque, wall_normal, kin, n, nbr_start, nbr, p, counters, diag, chunks)
-    _kick(vel, omg, force, drag, torque, kin, n, p, 0.5 * p[P.DT])
+    _forces(grains, n, p, nbrs, counters, diag, chunks)
+    _kick(grains, n, p, 0.5 * p[P.DT])

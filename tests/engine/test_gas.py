@@ -491,8 +491,7 @@ def test_couple_kernel_matches_the_wrapper_sequence(scheme):
     a.step(1e-5, substeps=2, split=scheme == "split")
     expect = a.drag_forces(pos)
     force = np.zeros((n, 3))
-    K.couple(pos, vel, n, b.P, b.dep, b.phi, b.kappa, b.u, b.src, b.nodal, b.wmat, b.wvec, b.area,
-             b.ay, b.az, b.g, 1e-5, 2, b.theta, b.feed_volume_rate, force, False)
+    K.couple(pos, vel, n, b.arrays(), 1e-5, 2, b.theta, b.feed_volume_rate, force, False)
     # the same arithmetic; compiled into couple, fastmath may contract the split solves
     # differently (measured 4e-13 of the largest P')
     assert np.abs(a.P - b.P).max() <= 1e-12 * np.abs(a.P).max()

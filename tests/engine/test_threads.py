@@ -10,6 +10,7 @@ from engine.bench import settled_simulation
 from engine.cli import main as cli_main
 from engine.kernels import params as P
 from engine.kernels.contacts import contact_forces, contact_forces_chunked
+from engine.kernels.state import Chunks
 
 TWO_THREADS = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 numba threads")
 
@@ -26,13 +27,14 @@ def _forces(sim, nchunks):
     force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 4)), np.zeros(cap), np.zeros(3)
     p = sim._p.copy()
     p[P.IMPLICIT_SPIN] = 1.0  # so that column 3 is summed
-    args = (sim._pos, sim._vel, sim._omg, sim._kin, n, sim._nbr_start, sim._nbr, p, force, torque, wall, diag)
+    grains = sim._grains()._replace(force=force, torque=torque, wall_normal=wall)
+    args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
         contact_forces(*args)
         return force[:n], torque[:n], wall[:n], diag, None
     spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 4))
     bounds, chunk_diag, count = np.zeros(nchunks + 1, np.int64), np.zeros((nchunks, 3)), np.zeros(cap, np.int64)
-    contact_forces_chunked(*args, spill_f, spill_t, bounds, chunk_diag, count)
+    contact_forces_chunked(*args, Chunks(spill_f, spill_t, bounds, chunk_diag, count))
     assert not spill_f.any() and not spill_t.any(), "spill rows must be zero again after the call"
     spilled = (chunk_diag[:, 2] > bounds[1:]).sum()
     return force[:n], torque[:n], wall[:n], diag, spilled

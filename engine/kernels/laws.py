@@ -1,0 +1,156 @@
+"""The force laws, one place each: contact (grain-grain and grain-wall) and body forces (SI units).
+
+Each law is a small function inlined into the kernels that loop over contacts (contacts.py) or
+grains (stepper.py); its constants come from the parameter vector once per kernel call
+(`pair_constants`, `wall_constants`, `kick_constants`), as a tuple that stays in registers.
+
+Normal: F_n = max(0, k_n delta + gamma_n v_n) along the line of centres (never attractive).
+Tangential: F_t = -min(mu F_n, gamma_t |v_t|) v_t/|v_t| at the contact point (no history), with
+v_t the tangential slip velocity of the contact point including rotation; gamma_t arrives capped at
+m_slip/dt so that the explicit dashpot cannot reverse a slip (engine/contact.py).
+Rolling resistance (particles.rolling_resistance, mu_r; 0 = off): a torque
+M = -min(mu_r r F_n, I_rel |w_rel|/dt) w_rel/|w_rel| against the relative spin w_rel (w_1 - w_2,
+or the grain's spin at a wall), capped so that one step cannot reverse w_rel (I_rel = I/2 for a
+pair, I at a wall).
+"""
+
+import math
+
+import numba as nb
+
+from . import params as P
+
+# fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
+FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def pair_constants(p):
+    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I_rel/dt) between two grains."""
+    return (p[P.RADIUS], p[P.KN], p[P.GN_PAIR], p[P.MU_PAIR], p[P.GT], p[P.ROLLING_RESISTANCE],
+            0.5 * p[P.INERTIA] / p[P.DT])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def wall_constants(p):
+    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I/dt) between a grain and a wall."""
+    return (p[P.RADIUS], p[P.KN], p[P.GN_WALL], p[P.MU_WALL], p[P.GT_WALL], p[P.ROLLING_RESISTANCE],
+            p[P.INERTIA] / p[P.DT])
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def optional_terms(p):
+    """Whether a case switches on a contact term that is not in the papers' model (then the
+    contact loop with the optional terms runs)."""
+    return p[P.ROLLING_RESISTANCE] > 0.0
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
+    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
+    if the contact is in its viscous (sticking) branch, else 0."""
+    vcn = vcx * nx + vcy * ny + vcz * nz
+    vtx = vcx - vcn * nx
+    vty = vcy - vcn * ny
+    vtz = vcz - vcn * nz
+    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    if vt <= 0.0:
+        return 0.0, 0.0, 0.0, gt
+    fv = gt * vt
+    fc = mu * fn
+    ft = min(fc, fv)
+    s = -ft / vt
+    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def rolling_torque(fn, wx, wy, wz, r, mu_r, cap):
+    """Rolling-resistance torque on the first body against the relative spin w, N m."""
+    w = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if w <= 0.0:
+        return 0.0, 0.0, 0.0
+    s = -min(mu_r * r * fn, cap * w) / w
+    return s * wx, s * wy, s * wz
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def normal_force(delta, vn, c):
+    """Normal force magnitude k_n delta + gamma_n v_n (N; repulsive when positive) at overlap delta
+    (m) and normal approach velocity vn (m/s); c = pair_ or wall_constants."""
+    return c[1] * delta + c[2] * vn
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional):
+    """Force and torques of a contact with normal force fn > 0 on the first body, along the unit
+    normal n (first -> second); v the relative velocity v1 - v2, w the spin sum w1 + w2 of the
+    contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
+
+    Returns (F, T1, T2, g): the force and torque on the first body, the torque on the second (the
+    first's tangential torque minus its rolling torque; the second's force is -F), and gamma_t if
+    the tangential force is in its viscous branch (else 0). `optional` adds the optional terms
+    (optional_terms); it is a compile-time constant of the calling loop (contacts.py compiles one
+    loop with them and one without), so that the loop without them keeps its arithmetic and speed.
+    """
+    r, _, _, mu, gt, mu_r, cap = c
+    ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
+                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+    fx = -fn * nx + ftx
+    fy = -fn * ny + fty
+    fz = -fn * nz + ftz
+    # both bodies get the same torque r n x F_t
+    tx = r * (ny * ftz - nz * fty)
+    ty = r * (nz * ftx - nx * ftz)
+    tz = r * (nx * fty - ny * ftx)
+    if optional:  # each term is zero when its key is 0
+        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap)
+        return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
+    return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional):
+    """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall) at
+    overlap delta (m); c = wall_constants.
+
+    Returns (F_n, F, T, g): the normal force magnitude (0 when separating, then all zero), force
+    and torque on the grain, and gamma_t if the tangential force is in its viscous branch (else 0).
+    Inlined with constant normals, the zero components fold away.
+    """
+    fn = normal_force(delta, vx * nx + vy * ny + vz * nz, c)
+    if fn <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
+                                                        c, optional)
+    return fn, fx, fy, fz, tx, ty, tz, g
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def kick_constants(p, kick_dt):
+    """(a, b, c, gx, gy, gz, rotate, implicit) of a kick by kick_dt: the velocity per force kick_dt/m,
+    the spin per torque kick_dt/I, the implicit-spin factor kick_dt r^2/I, the velocity change by
+    the body forces (gravity) and the two switches."""
+    return (kick_dt / p[P.MASS], kick_dt / p[P.INERTIA], kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA],
+            kick_dt * p[P.GX], kick_dt * p[P.GY], kick_dt * p[P.GZ],
+            p[P.ROTATION] > 0.0, p[P.IMPLICIT_SPIN] > 0.0)
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def velocity_kick(vx, vy, vz, fx, fy, fz, k, drift):
+    """A grain's velocity v (m/s) kicked by the force F (contacts and gas drag, N) and the body
+    forces (gravity) with the constants k of kick_constants. The kick before a drift sums
+    v + a F + g left to right, the closing half kick v + (a F + g): both orders are kept so that
+    the rounding of a step stays that of the engine's reference runs."""
+    a, _, _, gx, gy, gz, _, _ = k
+    if drift:
+        return vx + a * fx + gx, vy + a * fy + gy, vz + a * fz + gz
+    return vx + (a * fx + gx), vy + (a * fy + gy), vz + (a * fz + gz)
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def spin_kick(gamma_sum, k):
+    """Spin change per torque (1/(kg m2) s) of a kick with the constants k, given the sum of gamma_t
+    of the grain's viscous contacts (N s/m): divided by 1 + kick_dt r^2/I sum(gamma_t) with
+    numerics.implicit_spin."""
+    _, b, c, _, _, _, _, implicit = k
+    return b / (1.0 + c * gamma_sum) if implicit else b
