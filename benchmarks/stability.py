@@ -229,7 +229,7 @@ def stable_fraction(spec: StressCase) -> float:
 def state_of(sim: Simulation) -> dict[str, Any]:
     """Everything the checks need, read from a Simulation (copies; the feed grains included)."""
     n_all = int(sim._n[0])
-    in_feed = sim._kin[:n_all] == 1  # grains of the feed layers, held in place until released
+    in_feed = sim._in_feed[:n_all] == 1  # grains of the feed layers, held in place until released
     gas_on = bool(sim.case["gas.enabled"])
     return {
         "positions": np.array(sim.positions), "velocities": np.array(sim.velocities),

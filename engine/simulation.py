@@ -121,7 +121,7 @@ class Simulation:
     def _grains(self) -> Grains:
         """The per-grain arrays as the kernels take them."""
         return Grains(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
-                      self._wall_normal, self._gid, self._kin, self._pos_ref)
+                      self._wall_normal, self._gid, self._in_feed, self._pos_ref)
 
     def _neighbors(self) -> Neighbors:
         """The cell grid and neighbour list as the kernels take them."""
@@ -144,7 +144,7 @@ class Simulation:
                                    ("_torque", (cap, 4), float), ("_pos_ref", (cap, 3), float),
                                    ("_wall_normal", cap, float), ("_drag", (cap, 3), float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
-                                   ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
+                                   ("_in_feed", cap, np.int64), ("_tmpi", cap, np.int64),
                                    ("_cell_of", cap, np.int64), ("_order", cap, np.int64),
                                    ("_nbr_start", cap + 1, np.int64)]:
             new = np.zeros(shape, dtype=dtype)
@@ -203,7 +203,7 @@ class Simulation:
         sl = slice(n, n + k)
         self._pos[sl], self._vel[sl], self._omg[sl] = pos, vel, omg
         ids = np.arange(self._next_id, self._next_id + k)
-        self._gid[sl], self._kin[sl] = ids, int(kinematic)
+        self._gid[sl], self._in_feed[sl] = ids, int(kinematic)
         self._next_id += k
         self._n[0] = n + k
         self._dirty = True
@@ -275,8 +275,8 @@ class Simulation:
     def _kinematic_tail(self) -> float:
         """x of the deepest feed layer (the piston moves all layers together)."""
         n = int(self._n[0])
-        kin = self._kin[:n] == 1
-        return float(self._pos[:n, 0][kin].min()) if kin.any() else -math.inf
+        in_feed = self._in_feed[:n] == 1
+        return float(self._pos[:n, 0][in_feed].min()) if in_feed.any() else -math.inf
 
     def _check_status(self) -> None:
         status = self._counters[P.STATUS]
@@ -295,7 +295,7 @@ class Simulation:
     # ---- read-only state ----------------------------------------------------------------------
     def _dynamic_order(self) -> np.ndarray:
         n = int(self._n[0])
-        idx = np.flatnonzero(self._kin[:n] == 0)
+        idx = np.flatnonzero(self._in_feed[:n] == 0)
         return idx[np.argsort(self._gid[idx], kind="stable")]
 
     def _view(self, arr: np.ndarray) -> np.ndarray:
@@ -332,7 +332,7 @@ class Simulation:
     def n_particles(self) -> int:
         """Grains inside the tube (released from the feed, not yet past the outlet)."""
         n = int(self._n[0])
-        return int(np.count_nonzero(self._kin[:n] == 0))
+        return int(np.count_nonzero(self._in_feed[:n] == 0))
 
     @property
     def mass_in(self) -> float:
@@ -373,7 +373,7 @@ class Simulation:
         acc = np.zeros((nslices, S.NCOLS))
         n = int(self._n[0])
         S.accumulate_slices(self._pos, self._vel, self._force, self._drag_forces(), self._wall_normal,
-                            self._kin, n, self.model.radius, self.model.mass, float(self.gravity[0]),
+                            self._in_feed, n, self.model.radius, self.model.mass, float(self.gravity[0]),
                             width, acc)
         area = math.pi * self.case["tube.diameter"] ** 2 / 4
         weight = acc[:, S.WEIGHT]
@@ -415,6 +415,6 @@ class Simulation:
     def kinetic_energy(self) -> float:
         """Translational + rotational kinetic energy of the grains in the tube, J."""
         n = int(self._n[0])
-        dyn = self._kin[:n] == 0
+        dyn = self._in_feed[:n] == 0
         m, inertia = self.model.mass, self.model.inertia
         return float(0.5 * m * (self._vel[:n][dyn] ** 2).sum() + 0.5 * inertia * (self._omg[:n][dyn] ** 2).sum())

@@ -124,7 +124,7 @@ def _contacts_range_with(optional):
         grain i are handled in the same pass as its pairs, so that its force sums stay in registers
         (one pass instead of two: 1.24x faster on the standard packing, docs/performance.md).
         """
-        pos, vel, omg, force, _, torque, wall_normal, _, kin, _ = grains
+        pos, vel, omg, force, _, torque, wall_normal, _, in_feed, _ = grains
         force[lo:hi] = 0.0
         torque[lo:hi] = 0.0
         pair = laws.pair_constants(p)
@@ -164,7 +164,7 @@ def _contacts_range_with(optional):
                 ny = dy * inv
                 nz = dz * inv
                 delta = dia - dist
-                if kin[i] or kin[j]:
+                if in_feed[i] or in_feed[j]:
                     max_feed = max(max_feed, delta)
                 else:
                     max_overlap = max(max_overlap, delta)
@@ -207,7 +207,7 @@ def _contacts_range_with(optional):
                         spill_torque[j, 3] += g
                     top = max(top, j + 1)
             wall_normal[i] = 0.0
-            if not kin[i]:
+            if not in_feed[i]:
                 rho2 = yi * yi + zi * zi
                 if rho2 > inner * inner:
                     rho = math.sqrt(rho2)

@@ -24,7 +24,7 @@ def _cell_index(x, y, z, p, shape):
 
 
 @nb.njit(cache=True)
-def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+def sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                      counters):
     """Drop dynamic grains past x = L (counted in counters[REMOVED]), sort the rest by cell.
 
@@ -37,7 +37,7 @@ def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cel
     cell_start[:] = 0
     n_removed = 0
     for i in range(n):
-        if pos[i, 0] > length and not kin[i]:
+        if pos[i, 0] > length and not in_feed[i]:
             cell_of[i] = -1
             n_removed += 1
             continue
@@ -69,14 +69,14 @@ def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cel
         tmpi[k] = gid[order[k]]
     gid[:m] = tmpi[:m]
     for k in range(m):
-        tmpi[k] = kin[order[k]]
-    kin[:m] = tmpi[:m]
+        tmpi[k] = in_feed[order[k]]
+    in_feed[:m] = tmpi[:m]
     counters[P.REMOVED] += n_removed
     return m
 
 
 @nb.njit(cache=True)
-def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
+def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
     """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
 
     Returns the number of pairs, or -1 if nbr is too small (the caller grows it and calls again).
@@ -103,7 +103,7 @@ def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
                 for az in range(cz if ax == cx and ay == cy else max(cz - 1, 0), min(cz + 2, ncz)):
                     c = (ax * ncy + ay) * ncz + az
                     for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
-                        if kin[i] and kin[j]:
+                        if in_feed[i] and in_feed[j]:
                             continue
                         dx = pos[j, 0] - xi
                         dy = pos[j, 1] - yi

@@ -6,7 +6,7 @@ from collections import namedtuple
 # gas drag (N); torque (N m) in columns 0-2 and the sum of gamma_t of the grain's contacts in their
 # viscous branch in column 3 (N s/m, numerics.implicit_spin); normal force of the cylinder (N); id;
 # 1 for a feed (kinematic) grain; centre at the last neighbour-list build (m).
-Grains = namedtuple("Grains", "pos vel omg force drag torque wall_normal gid kin pos_ref")
+Grains = namedtuple("Grains", "pos vel omg force drag torque wall_normal gid in_feed pos_ref")
 
 # Cell grid and half neighbour list: grid shape (ncx, ncy, ncz), cell starts, each grain's cell,
 # sort order and sort work arrays, list starts per grain and the list (params.CELL_*, SKIN).

@@ -26,12 +26,12 @@ def rebuild(grains, n, p, nbrs, counters):
 
     On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbrs.nbr and retries).
     """
-    pos, vel, omg, _, drag, _, _, gid, kin, pos_ref = grains
+    pos, vel, omg, _, drag, _, _, gid, in_feed, pos_ref = grains
     shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = nbrs
-    n = sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+    n = sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
     pos_ref[:n] = pos[:n]
-    npairs = build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr)
+    npairs = build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr)
     counters[P.OVERFLOW] = 1 if npairs < 0 else 0
     counters[P.REBUILDS] += 1
     return n
@@ -40,11 +40,12 @@ def rebuild(grains, n, p, nbrs, counters):
 @nb.njit(cache=True, fastmath=FASTMATH)
 def _kick(grains, n, p, kick_dt):
     """Velocity update of the dynamic grains by kick_dt (laws.kick)."""
-    vel, omg, force, drag, torque, kin = grains.vel, grains.omg, grains.force, grains.drag, grains.torque, grains.kin
+    vel, omg, force, drag, torque = grains.vel, grains.omg, grains.force, grains.drag, grains.torque
+    in_feed = grains.in_feed
     k = laws.kick_constants(p, kick_dt)
     rotate = k[6]
     for i in range(n):
-        if kin[i]:
+        if in_feed[i]:
             continue
         vel[i, 0], vel[i, 1], vel[i, 2] = laws.velocity_kick(
             vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0], force[i, 1] + drag[i, 1],
@@ -65,7 +66,7 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin, left the tube or
     was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
-    pos, vel, omg, force, drag, torque, _, _, kin, pos_ref = grains
+    pos, vel, omg, force, drag, torque, _, _, in_feed, pos_ref = grains
     dt = p[P.DT]
     r = p[P.RADIUS]
     k = laws.kick_constants(p, kick_dt)
@@ -76,10 +77,10 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     tube2 = p[P.TUBE_RADIUS] * p[P.TUBE_RADIUS]
     need = 0
     for i in range(n):
-        if kin[i]:
+        if in_feed[i]:
             pos[i, 0] += feed_dx
             if pos[i, 0] >= r:
-                kin[i] = 0
+                in_feed[i] = 0
                 counters[P.RELEASED] += 1
                 need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
@@ -165,10 +166,10 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks):
     diag[P.DIAG_RUNNING_MAX] = max(diag[P.DIAG_RUNNING_MAX], diag[P.DIAG_OVERLAP], diag[P.DIAG_FEED_OVERLAP])
     if p[P.FEED_SPEED] > 0.0:
         # the feed grains carry the reactions of their contacts: minus their sum is the piston's push
-        kin, force = grains.kin, grains.force
+        in_feed, force = grains.in_feed, grains.force
         push = 0.0
         for i in range(n):
-            if kin[i]:
+            if in_feed[i]:
                 push -= force[i, 0]
         diag[P.DIAG_PISTON_IMPULSE] += push * p[P.DT]
     counters[P.STEPS] += 1
