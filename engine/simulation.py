@@ -121,7 +121,7 @@ class Simulation:
     def _grains(self) -> Grains:
         """The per-grain arrays as the kernels take them."""
         return Grains(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
-                      self._wall_normal, self._gid, self._in_feed, self._pos_ref)
+                      self._viscous_damping, self._wall_normal, self._gid, self._in_feed, self._pos_ref)
 
     def _neighbors(self) -> Neighbors:
         """The cell grid and neighbour list as the kernels take them."""
@@ -141,7 +141,8 @@ class Simulation:
         arrays = {}
         for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
                                    ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
-                                   ("_torque", (cap, 4), float), ("_pos_ref", (cap, 3), float),
+                                   ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
+                                   ("_viscous_damping", cap, float),
                                    ("_wall_normal", cap, float), ("_drag", (cap, 3), float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
                                    ("_in_feed", cap, np.int64), ("_tmpi", cap, np.int64),
@@ -160,10 +161,9 @@ class Simulation:
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
         rows = cap if self.threads > 1 else 1
-        # spill torque rows hold the three torques and the viscous gamma_t sum (numerics.implicit_spin)
-        return Chunks(np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 4)),
-                      np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
-                      np.zeros(rows, dtype=np.int64))
+        return Chunks(np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 3)),
+                      np.zeros((self.threads, rows)), np.zeros(self.threads + 1, dtype=np.int64),
+                      np.zeros((self.threads, 3)), np.zeros(rows, dtype=np.int64))
 
     def set_threads(self, threads: int) -> None:
         """Compute the contact forces on `threads` numba threads from now on."""

@@ -2,7 +2,7 @@
 
 Forces that depend on velocity use the half-step velocity, as LAMMPS's fix nve/sphere does.
 With numerics.implicit_spin a grain's spin kick is divided by 1 + kick_dt r^2/I sum(gamma_t) over its
-contacts in the viscous branch (torque[:, 3]): the dashpots' action on the grain's own spin taken
+contacts in the viscous branch (viscous_damping): the dashpots' action on the grain's own spin taken
 implicitly, so that a packed bed's spins do not chatter when gamma_t dt/(m/7) nears 1 (the fixed
 points are unchanged; the split of a sticking impulse between spin and translation is not exact,
 docs/performance.md, "The tangential dashpot and the time step").
@@ -26,7 +26,7 @@ def rebuild(grains, n, p, nbrs, counters):
 
     On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbrs.nbr and retries).
     """
-    pos, vel, omg, _, drag, _, _, gid, in_feed, pos_ref = grains
+    pos, vel, omg, _, drag, _, _, _, gid, in_feed, pos_ref = grains
     shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = nbrs
     n = sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
@@ -41,7 +41,7 @@ def rebuild(grains, n, p, nbrs, counters):
 def _kick(grains, n, p, kick_dt):
     """Velocity update of the dynamic grains by kick_dt (laws.kick)."""
     vel, omg, force, drag, torque = grains.vel, grains.omg, grains.force, grains.drag, grains.torque
-    in_feed = grains.in_feed
+    viscous_damping, in_feed = grains.viscous_damping, grains.in_feed
     k = laws.kick_constants(p, kick_dt)
     rotate = k[6]
     for i in range(n):
@@ -51,7 +51,7 @@ def _kick(grains, n, p, kick_dt):
             vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0], force[i, 1] + drag[i, 1],
             force[i, 2] + drag[i, 2], k, False)
         if rotate:
-            bb = laws.spin_kick(torque[i, 3], k)
+            bb = laws.spin_kick(viscous_damping[i], k)
             omg[i, 0] += bb * torque[i, 0]
             omg[i, 1] += bb * torque[i, 1]
             omg[i, 2] += bb * torque[i, 2]
@@ -66,7 +66,7 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin, left the tube or
     was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
-    pos, vel, omg, force, drag, torque, _, _, in_feed, pos_ref = grains
+    pos, vel, omg, force, drag, torque, viscous_damping, _, _, in_feed, pos_ref = grains
     dt = p[P.DT]
     r = p[P.RADIUS]
     k = laws.kick_constants(p, kick_dt)
@@ -90,7 +90,7 @@ def _kick_drift(grains, n, p, kick_dt, counters):
             vel[i, 1] = vy
             vel[i, 2] = vz
             if rotate:
-                bb = laws.spin_kick(torque[i, 3], k)
+                bb = laws.spin_kick(viscous_damping[i], k)
                 omg[i, 0] += bb * torque[i, 0]
                 omg[i, 1] += bb * torque[i, 1]
                 omg[i, 2] += bb * torque[i, 2]
