@@ -241,7 +241,7 @@ def state_of(sim: Simulation) -> dict[str, Any]:
         "time": sim.time, "dt": sim.dt,
         "feed_limit": (sim.feed.mass_flow * sim.time + sim.feed.layer_mass) if sim.feed.enabled else 0.0,
         "pressure_drop": sim.pressure_drop if gas_on else 0.0,
-        "gas_pressure": np.array(sim.gas.P) if gas_on else np.zeros(1),
+        "gas_pressure": np.array(sim.gas.pressure) if gas_on else np.zeros(1),
         "gas_reference": sim.case["gas.pressure"],
     }
 

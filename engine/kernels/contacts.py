@@ -8,7 +8,7 @@ import math
 import numba as nb
 
 from . import laws
-from . import params as P
+from . import params
 from .laws import FASTMATH
 
 
@@ -137,14 +137,14 @@ def _contacts_range_with(optional):
         viscous_damping[lo:hi] = 0.0
         pair = laws.pair_constants(p)
         wall = laws.wall_constants(p)
-        r = p[P.RADIUS]
+        r = p[params.RADIUS]
         dia = 2.0 * r
-        inner = p[P.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
+        inner = p[params.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
         max_overlap = 0.0
         max_feed = 0.0
         top = hi
         counting = contact_count.shape[0] > 0
-        implicit = p[P.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
+        implicit = p[params.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
         for i in range(lo, hi):
             touching = 0
             xi = pos[i, 0]

@@ -8,7 +8,7 @@ import pytest
 from engine import Case, Simulation
 from engine.bench import settled_simulation
 from engine.cli import main as cli_main
-from engine.kernels import params as P
+from engine.kernels import params
 from engine.kernels.contacts import contact_forces, contact_forces_chunked
 from engine.kernels.state import Chunks
 
@@ -26,13 +26,14 @@ def _forces(sim, nchunks):
     force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 3)), np.zeros(cap), np.zeros(3)
     damping = np.zeros(cap)  # the sum of gamma_t of each grain's viscous contacts (numerics.implicit_spin)
     p = sim._p.copy()
-    p[P.IMPLICIT_SPIN] = 1.0  # so that the viscous damping is summed
+    p[params.IMPLICIT_SPIN] = 1.0  # so that the viscous damping is summed
     grains = sim._grains()._replace(force=force, torque=torque, viscous_damping=damping, wall_normal=wall)
     args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
         contact_forces(*args)
         return force[:n], torque[:n], damping[:n], wall[:n], diag, None
-    spill_f, spill_t, spill_d = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap))
+    spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 3))
+    spill_d = np.zeros((nchunks, cap))
     bounds, chunk_diag, count = np.zeros(nchunks + 1, np.int64), np.zeros((nchunks, 3)), np.zeros(cap, np.int64)
     contact_forces_chunked(*args, Chunks(spill_f, spill_t, spill_d, bounds, chunk_diag, count))
     assert not spill_f.any() and not spill_t.any() and not spill_d.any(), \
