@@ -229,7 +229,7 @@ def stable_fraction(spec: StressCase) -> float:
 def state_of(sim: Simulation) -> dict[str, Any]:
     """Everything the checks need, read from a Simulation (copies; the feed grains included)."""
     n_all = int(sim._n[0])
-    in_feed = sim._kin[:n_all] == 1  # grains of the feed layers, held in place until released
+    in_feed = sim._in_feed[:n_all] == 1  # grains of the feed layers, held in place until released
     gas_on = bool(sim.case["gas.enabled"])
     return {
         "positions": np.array(sim.positions), "velocities": np.array(sim.velocities),
@@ -241,7 +241,7 @@ def state_of(sim: Simulation) -> dict[str, Any]:
         "time": sim.time, "dt": sim.dt,
         "feed_limit": (sim.feed.mass_flow * sim.time + sim.feed.layer_mass) if sim.feed.enabled else 0.0,
         "pressure_drop": sim.pressure_drop if gas_on else 0.0,
-        "gas_pressure": np.array(sim.gas.P) if gas_on else np.zeros(1),
+        "gas_pressure": np.array(sim.gas.pressure) if gas_on else np.zeros(1),
         "gas_reference": sim.case["gas.pressure"],
     }
 

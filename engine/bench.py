@@ -169,7 +169,7 @@ def gas_cost_split(steps: int, repeats: int) -> dict:
 
     def solve_steps():
         for _ in range(steps):
-            gas_kernels.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g,
+            gas_kernels.gas_step(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g,
                                  dt, 1.0, gas.wmat, gas.wvec)
 
     couple = statistics.median(_timed(couple_steps) / steps for _ in range(repeats))

@@ -162,7 +162,7 @@ class GasField:
         self.area, self.ay, self.az = build_geometry(length, radius, self.nodes)
         g[K.G_SOLID_MIN] = particle_volume / (8.0 * g[K.G_HX] * self.area.max())
         shape = self.nodes
-        self.P = np.zeros(shape)
+        self.pressure = np.zeros(shape)        # P' (Pa); P0 is g[G_P0]
         self.dep = np.zeros(shape + (4,))      # solid volume, solid volume x velocity
         self.phi = np.ones(shape)
         self.kappa = np.zeros(shape)
@@ -243,7 +243,7 @@ class GasField:
         if split is None:
             split = self.g[K.G_SPLIT] > 0.5
         h = dt / substeps
-        args = (self.P, self.phi, self.kappa, self.src, self.area, self.ay, self.az, self.g, h,
+        args = (self.pressure, self.phi, self.kappa, self.src, self.area, self.ay, self.az, self.g, h,
                 self.theta)
         for _ in range(substeps):
             if split:
@@ -253,7 +253,7 @@ class GasField:
 
     def pressure_gradient(self):
         """Node pressure gradient (Pa/m), shape (nx, ny, nz, 3)."""
-        K.pressure_gradient(self.P, self.phi, self.kappa, self.u, self.g, self.feed_volume_rate,
+        K.pressure_gradient(self.pressure, self.phi, self.kappa, self.u, self.g, self.feed_volume_rate,
                             self.nodal)
         return self.nodal[..., 1:]
 
@@ -268,11 +268,11 @@ class GasField:
 
     def pressure_drop(self):
         """Inlet-face minus outlet-face pressure (Pa)."""
-        return K.pressure_drop(self.P, self.kappa, self.u, self.area, self.g, self.feed_volume_rate)
+        return K.pressure_drop(self.pressure, self.kappa, self.u, self.area, self.g, self.feed_volume_rate)
 
     def gas_content(self):
         """sum_j phi_j V_j P'_j (Pa m3), conserved by a step without boundary or grain fluxes."""
-        return K.gas_content(self.P, self.phi, self.area, self.g)
+        return K.gas_content(self.pressure, self.phi, self.area, self.g)
 
     def diffusion_number(self, dt):
         """Largest D dt / h^2 over the nodes; D = P0 kappa / (eta phi) (eq. 5), h the finest spacing."""
@@ -310,16 +310,17 @@ def benchmark(repeats=2000, grains=3200, seed=0):
         g = gas.g
         for _ in range(reps):
             if which == 0:
-                K.gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5, theta, gas.wmat,
-                           gas.wvec)
+                K.gas_step(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5, theta,
+                           gas.wmat, gas.wvec)
             elif which == 1:
-                K.gas_step_split(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5, theta, work)
+                K.gas_step_split(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, 1e-5,
+                                 theta, work)
             elif which == 2:
                 K.deposit(pos, vel, len(pos), g, gas.dep)
             elif which == 3:
                 K.update_fields(gas.dep, gas.area, g, gas.phi, gas.kappa, gas.u)
                 K.volume_sources(gas.u, gas.area, gas.ay, gas.az, g, 0.0, gas.src)
-                K.pressure_gradient(gas.P, gas.phi, gas.kappa, gas.u, g, 0.0, gas.nodal)
+                K.pressure_gradient(gas.pressure, gas.phi, gas.kappa, gas.u, g, 0.0, gas.nodal)
             elif which == 4:
                 K.drag_forces(pos, len(pos), gas.nodal, g, force, False)
             else:

@@ -12,7 +12,7 @@ from .contact import ContactModel
 from .feed import Feed
 from .gas import GasField
 from .kernels import gas as gas_kernels
-from .kernels import params as P
+from .kernels import params
 from .kernels import slices as S
 from .kernels.contacts import evaluate_contacts
 from .kernels.state import Chunks, Grains, Neighbors
@@ -62,8 +62,8 @@ class Simulation:
         self.gas = self._make_gas()
         self._allocate(self._initial_capacity())
         self._n = np.zeros(1, dtype=np.int64)
-        self._counters = np.zeros(P.NCOUNTERS, dtype=np.int64)
-        self._diag = np.zeros(P.NDIAG)  # overlaps (m) and the piston impulse (N s), params.DIAG_*
+        self._counters = np.zeros(params.NCOUNTERS, dtype=np.int64)
+        self._diag = np.zeros(params.NDIAG)  # overlaps (m) and the piston impulse (N s), params.DIAG_*
         self._dirty = True        # arrays changed outside the time loop: rebuild + forces first
         self._feed_tail = None    # x of the last feed layer created
 
@@ -71,38 +71,39 @@ class Simulation:
     def _setup_params(self) -> None:
         c, m = self.case, self.model
         d = 2 * m.radius
-        p = P.new_params()
-        p[P.DT] = self.dt
-        p[P.MASS], p[P.RADIUS], p[P.INERTIA] = m.mass, m.radius, m.inertia
-        p[P.KN], p[P.GN_PAIR], p[P.GN_WALL] = m.stiffness, m.damping_pair, m.damping_wall
-        p[P.GT], p[P.GT_WALL] = m.tangential_damping_pair, m.tangential_damping_wall
-        p[P.MU_PAIR], p[P.MU_WALL] = m.friction_pair, m.friction_wall
-        p[P.TUBE_RADIUS], p[P.TUBE_LENGTH] = c["tube.diameter"] / 2, c["tube.length"]
-        p[P.GX], p[P.GY], p[P.GZ] = self.gravity
-        p[P.FEED_SPEED] = self.feed.entry_velocity if self.feed.enabled else 0.0
-        p[P.FEED_MAX_OVERLAP] = c["feed.max_overlap"] * d
+        p = params.new_params()
+        p[params.DT] = self.dt
+        p[params.MASS], p[params.RADIUS], p[params.INERTIA] = m.mass, m.radius, m.inertia
+        p[params.KN], p[params.GN_PAIR], p[params.GN_WALL] = m.stiffness, m.damping_pair, m.damping_wall
+        p[params.GT], p[params.GT_WALL] = m.tangential_damping_pair, m.tangential_damping_wall
+        p[params.MU_PAIR], p[params.MU_WALL] = m.friction_pair, m.friction_wall
+        p[params.TUBE_RADIUS], p[params.TUBE_LENGTH] = c["tube.diameter"] / 2, c["tube.length"]
+        p[params.GX], p[params.GY], p[params.GZ] = self.gravity
+        p[params.FEED_SPEED] = self.feed.entry_velocity if self.feed.enabled else 0.0
+        p[params.FEED_MAX_OVERLAP] = c["feed.max_overlap"] * d
         # A jammed tube keeps the piston pressing while it advances; a numerical blow-up near the
         # feed is a spike. Blocked means pressing for as long as the piston takes to advance
         # BLOCK_TRAVEL d, long enough for a blow-up to trip the other guards first.
         speed = self.feed.entry_velocity if self.feed.enabled else 0.0
-        p[P.FEED_BLOCK_STEPS] = math.ceil(BLOCK_TRAVEL * d / (speed * self.dt)) if speed > 0 else 1
-        p[P.SKIN] = c["numerics.neighbor_skin"] * d
-        cut = d + p[P.SKIN]
-        p[P.CELL_X0] = -2 * d
-        ncx = max(1, int((c["tube.length"] + 2 * d - p[P.CELL_X0]) / cut))
+        p[params.FEED_BLOCK_STEPS] = math.ceil(BLOCK_TRAVEL * d / (speed * self.dt)) if speed > 0 else 1
+        p[params.SKIN] = c["numerics.neighbor_skin"] * d
+        cut = d + p[params.SKIN]
+        p[params.CELL_X0] = -2 * d
+        ncx = max(1, int((c["tube.length"] + 2 * d - p[params.CELL_X0]) / cut))
         nyz = max(1, int(c["tube.diameter"] / cut))
-        p[P.CELL_DX] = (c["tube.length"] + 2 * d - p[P.CELL_X0]) / ncx
-        p[P.CELL_DYZ] = c["tube.diameter"] / nyz
+        p[params.CELL_DX] = (c["tube.length"] + 2 * d - p[params.CELL_X0]) / ncx
+        p[params.CELL_DYZ] = c["tube.diameter"] / nyz
         # Rotation only matters through tangential forces; frictionless grains never spin up.
-        p[P.IMPLICIT_SPIN] = 1.0 if c["numerics.implicit_spin"] else 0.0
-        p[P.ROTATION] = 1.0 if (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0 else 0.0
-        p[P.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
-        p[P.GAS_INTERVAL] = c["numerics.gas_interval"]
-        p[P.GAS_THETA] = c["gas.theta"]
+        p[params.IMPLICIT_SPIN] = 1.0 if c["numerics.implicit_spin"] else 0.0
+        rotates = (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0
+        p[params.ROTATION] = 1.0 if rotates else 0.0
+        p[params.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
+        p[params.GAS_INTERVAL] = c["numerics.gas_interval"]
+        p[params.GAS_THETA] = c["gas.theta"]
         # the volume of the entering grains joins the inlet gas flux (gas.inlet_displaced_volume)
         displaced = self.feed.enabled and c["gas.inlet_displaced_volume"]
-        p[P.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if displaced else 0.0
-        for slot, key in P.FROM_CASE.items():
+        p[params.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if displaced else 0.0
+        for slot, key in params.FROM_CASE.items():
             p[slot] = c[key]
         self._p = p
         self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
@@ -114,14 +115,14 @@ class Simulation:
         return GasField(length=c["tube.length"], diameter=c["tube.diameter"],
                         particle_diameter=c["particles.diameter"], viscosity=c["gas.viscosity"],
                         pressure=c["gas.pressure"], superficial_velocity=c["gas.superficial_velocity"],
-                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[P.FEED_VOLUME_RATE],
+                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[params.FEED_VOLUME_RATE],
                         phi_max=c["gas.porosity_max"], face=c["gas.face_permeability"],
                         deposit=c["gas.deposit_volume"], scheme=c["gas.scheme"])
 
     def _grains(self) -> Grains:
         """The per-grain arrays as the kernels take them."""
         return Grains(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
-                      self._wall_normal, self._gid, self._kin, self._pos_ref)
+                      self._viscous_damping, self._wall_normal, self._gid, self._in_feed, self._pos_ref)
 
     def _neighbors(self) -> Neighbors:
         """The cell grid and neighbour list as the kernels take them."""
@@ -141,10 +142,11 @@ class Simulation:
         arrays = {}
         for name, shape, dtype in [("_pos", (cap, 3), float), ("_vel", (cap, 3), float),
                                    ("_omg", (cap, 3), float), ("_force", (cap, 3), float),
-                                   ("_torque", (cap, 4), float), ("_pos_ref", (cap, 3), float),
+                                   ("_torque", (cap, 3), float), ("_pos_ref", (cap, 3), float),
+                                   ("_viscous_damping", cap, float),
                                    ("_wall_normal", cap, float), ("_drag", (cap, 3), float),
                                    ("_tmp3", (cap, 3), float), ("_gid", cap, np.int64),
-                                   ("_kin", cap, np.int64), ("_tmpi", cap, np.int64),
+                                   ("_in_feed", cap, np.int64), ("_tmpi", cap, np.int64),
                                    ("_cell_of", cap, np.int64), ("_order", cap, np.int64),
                                    ("_nbr_start", cap + 1, np.int64)]:
             new = np.zeros(shape, dtype=dtype)
@@ -160,10 +162,9 @@ class Simulation:
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
         rows = cap if self.threads > 1 else 1
-        # spill torque rows hold the three torques and the viscous gamma_t sum (numerics.implicit_spin)
-        return Chunks(np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 4)),
-                      np.zeros(self.threads + 1, dtype=np.int64), np.zeros((self.threads, 3)),
-                      np.zeros(rows, dtype=np.int64))
+        return Chunks(np.zeros((self.threads, rows, 3)), np.zeros((self.threads, rows, 3)),
+                      np.zeros((self.threads, rows)), np.zeros(self.threads + 1, dtype=np.int64),
+                      np.zeros((self.threads, 3)), np.zeros(rows, dtype=np.int64))
 
     def set_threads(self, threads: int) -> None:
         """Compute the contact forces on `threads` numba threads from now on."""
@@ -203,7 +204,7 @@ class Simulation:
         sl = slice(n, n + k)
         self._pos[sl], self._vel[sl], self._omg[sl] = pos, vel, omg
         ids = np.arange(self._next_id, self._next_id + k)
-        self._gid[sl], self._kin[sl] = ids, int(kinematic)
+        self._gid[sl], self._in_feed[sl] = ids, int(kinematic)
         self._next_id += k
         self._n[0] = n + k
         self._dirty = True
@@ -238,7 +239,7 @@ class Simulation:
         """Sort, drop outflow and rebuild the neighbour list, growing the list until it fits."""
         while True:
             self._n[0] = rebuild(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters)
-            if not self._counters[P.OVERFLOW]:
+            if not self._counters[params.OVERFLOW]:
                 return
             self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
 
@@ -248,7 +249,7 @@ class Simulation:
             raise ValueError(f"advance(seconds={seconds}) needs seconds >= 0")
         remaining = int(round(seconds / self.dt))
         # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
-        speed = self._p[P.FEED_SPEED]
+        speed = self._p[params.FEED_SPEED]
         chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
         if self.threads > 1:
             numba.set_num_threads(self.threads)
@@ -260,7 +261,7 @@ class Simulation:
                 self._prepare()
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
                             self.gas.arrays(), self._chunks)
-            if self._counters[P.OVERFLOW]:  # grow the neighbour list and finish the broken step
+            if self._counters[params.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
@@ -275,27 +276,27 @@ class Simulation:
     def _kinematic_tail(self) -> float:
         """x of the deepest feed layer (the piston moves all layers together)."""
         n = int(self._n[0])
-        kin = self._kin[:n] == 1
-        return float(self._pos[:n, 0][kin].min()) if kin.any() else -math.inf
+        in_feed = self._in_feed[:n] == 1
+        return float(self._pos[:n, 0][in_feed].min()) if in_feed.any() else -math.inf
 
     def _check_status(self) -> None:
-        status = self._counters[P.STATUS]
-        if status == P.OK:
+        status = self._counters[params.STATUS]
+        if status == params.OK:
             return
-        if status == P.BLOCKED:
+        if status == params.BLOCKED:
             raise FeedBlocked(
                 f"the tube is blocked at t = {self.time:.4f} s: the feed piston pressed a grain by more "
                 f"than feed.max_overlap = {self.case['feed.max_overlap']:g} d while advancing "
                 f"{BLOCK_TRAVEL:g} d")
-        what = {P.NONFINITE: "a grain position became non-finite (NaN/Inf)",
-                P.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
+        what = {params.NONFINITE: "a grain position became non-finite (NaN/Inf)",
+                params.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
         raise SimulationError(f"{what} at t = {self.time:.6f} s; the time step or the contact "
                               f"parameters are too aggressive for this case")
 
     # ---- read-only state ----------------------------------------------------------------------
     def _dynamic_order(self) -> np.ndarray:
         n = int(self._n[0])
-        idx = np.flatnonzero(self._kin[:n] == 0)
+        idx = np.flatnonzero(self._in_feed[:n] == 0)
         return idx[np.argsort(self._gid[idx], kind="stable")]
 
     def _view(self, arr: np.ndarray) -> np.ndarray:
@@ -332,33 +333,33 @@ class Simulation:
     def n_particles(self) -> int:
         """Grains inside the tube (released from the feed, not yet past the outlet)."""
         n = int(self._n[0])
-        return int(np.count_nonzero(self._kin[:n] == 0))
+        return int(np.count_nonzero(self._in_feed[:n] == 0))
 
     @property
     def mass_in(self) -> float:
         """Cumulative grain mass released into the tube by the feed, kg."""
-        return self._counters[P.RELEASED] * self.model.mass
+        return self._counters[params.RELEASED] * self.model.mass
 
     @property
     def mass_out(self) -> float:
         """Cumulative grain mass that left past the outlet, kg."""
-        return self._counters[P.REMOVED] * self.model.mass
+        return self._counters[params.REMOVED] * self.model.mass
 
     @property
     def max_overlap(self) -> float:
         """Largest overlap (grain-grain, grain-wall or grain-feed) over every step since the start
         or the last reset_max_overlap(), m."""
-        return float(self._diag[:P.DIAG_RUNNING_MAX + 1].max())
+        return float(self._diag[:params.DIAG_RUNNING_MAX + 1].max())
 
     def reset_max_overlap(self) -> None:
         """Start a new window for max_overlap (run_case: every output frame)."""
-        self._diag[P.DIAG_RUNNING_MAX] = 0.0
+        self._diag[params.DIAG_RUNNING_MAX] = 0.0
 
     @property
     def piston_impulse(self) -> float:
         """Cumulative axial impulse the feed piston has exerted on the tube grains, N s (its
         change over an interval, divided by the interval, is the mean piston force)."""
-        return float(self._diag[P.DIAG_PISTON_IMPULSE])
+        return float(self._diag[params.DIAG_PISTON_IMPULSE])
 
     def slice_fields(self, width: float) -> dict[str, np.ndarray]:
         """Slice averages over slices of `width` (m) from the inlet (papers §3.2).
@@ -373,7 +374,7 @@ class Simulation:
         acc = np.zeros((nslices, S.NCOLS))
         n = int(self._n[0])
         S.accumulate_slices(self._pos, self._vel, self._force, self._drag_forces(), self._wall_normal,
-                            self._kin, n, self.model.radius, self.model.mass, float(self.gravity[0]),
+                            self._in_feed, n, self.model.radius, self.model.mass, float(self.gravity[0]),
                             width, acc)
         area = math.pi * self.case["tube.diameter"] ** 2 / 4
         weight = acc[:, S.WEIGHT]
@@ -395,8 +396,8 @@ class Simulation:
         if not self.case["gas.enabled"]:
             return 0.0
         gas = self.gas
-        return float(gas_kernels.pressure_drop(gas.P, gas.kappa, gas.u, gas.area, gas.g,
-                                               self._p[P.FEED_VOLUME_RATE]))
+        return float(gas_kernels.pressure_drop(gas.pressure, gas.kappa, gas.u, gas.area, gas.g,
+                                               self._p[params.FEED_VOLUME_RATE]))
 
     def gas_pressure_slices(self, width: float) -> np.ndarray:
         """Gas pressure P' (cross-section mean) at the slice centres of `width` (m), Pa."""
@@ -404,7 +405,7 @@ class Simulation:
         if not self.case["gas.enabled"]:
             return np.zeros(nslices)
         gas = self.gas
-        mean = (gas.P * gas.area).sum(axis=(1, 2)) / gas.area.sum()
+        mean = (gas.pressure * gas.area).sum(axis=(1, 2)) / gas.area.sum()
         return np.interp((np.arange(nslices) + 0.5) * width, gas.x, mean)
 
     def _drag_forces(self) -> np.ndarray:
@@ -415,6 +416,6 @@ class Simulation:
     def kinetic_energy(self) -> float:
         """Translational + rotational kinetic energy of the grains in the tube, J."""
         n = int(self._n[0])
-        dyn = self._kin[:n] == 0
+        dyn = self._in_feed[:n] == 0
         m, inertia = self.model.mass, self.model.inertia
         return float(0.5 * m * (self._vel[:n][dyn] ** 2).sum() + 0.5 * inertia * (self._omg[:n][dyn] ** 2).sum())

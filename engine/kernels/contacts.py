@@ -8,7 +8,7 @@ import math
 import numba as nb
 
 from . import laws
-from . import params as P
+from . import params
 from .laws import FASTMATH
 
 
@@ -17,13 +17,13 @@ def contact_forces(grains, n, nbr_start, nbr, p, diag):
     """Zero, then accumulate the grain-grain, cylinder-wall and inlet-wall forces and torques.
 
     diag[0]: max overlap of dynamic grains (pairs and walls), diag[1]: max overlap with a feed
-    grain, m. torque[i, 3]: the sum of gamma_t over grain i's contacts in the viscous branch, N s/m
-    (the implicit spin kick's denominator, numerics.implicit_spin; summed only when that is on).
+    grain, m. viscous_damping[i]: the sum of gamma_t over grain i's contacts in the viscous branch,
+    N s/m (the implicit spin kick's denominator, numerics.implicit_spin; summed only when that is on).
     wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
     Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
     """
     max_overlap, max_feed, _ = _contacts_range(0, n, grains, nbr_start, nbr, p, grains.force, grains.torque,
-                                               nbr_start[:0])
+                                               grains.viscous_damping, nbr_start[:0])
     diag[0] = max_overlap
     diag[1] = max_feed
 
@@ -48,14 +48,15 @@ def contact_forces_chunked(grains, n, nbr_start, nbr, p, diag, chunks):
     contact_count[i] (touching pairs of i's list plus its walls) is kept from call to call to balance
     the chunks.
     """
-    spill_force, spill_torque, bounds, chunk_diag, contact_count = chunks
+    spill_force, spill_torque, spill_viscous_damping, bounds, chunk_diag, contact_count = chunks
     force = grains.force
     torque = grains.torque
+    viscous_damping = grains.viscous_damping
     nchunks = bounds.shape[0] - 1
     _balance(nbr_start, contact_count, n, bounds)
     for c in nb.prange(nchunks):
         a, b, top = _contacts_range(bounds[c], bounds[c + 1], grains, nbr_start, nbr, p, spill_force[c],
-                                    spill_torque[c], contact_count)
+                                    spill_torque[c], spill_viscous_damping[c], contact_count)
         chunk_diag[c, 0] = a
         chunk_diag[c, 1] = b
         chunk_diag[c, 2] = top
@@ -68,9 +69,11 @@ def contact_forces_chunked(grains, n, nbr_start, nbr, p, diag, chunks):
             for d in range(3):
                 force[j, d] += spill_force[c, j, d]
                 spill_force[c, j, d] = 0.0
-            for d in range(4):  # the spin's three torques and the sum of its viscous gamma_t
+            for d in range(3):
                 torque[j, d] += spill_torque[c, j, d]
                 spill_torque[c, j, d] = 0.0
+            viscous_damping[j] += spill_viscous_damping[c, j]
+            spill_viscous_damping[c, j] = 0.0
     diag[0] = max_overlap
     diag[1] = max_feed
 
@@ -102,12 +105,14 @@ def _balance(nbr_start, contact_count, n, bounds):
 
 
 @nb.njit(cache=True, inline="always")
-def _contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
+def _contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, spill_viscous_damping,
+                    contact_count):
     """The contact loop (_contacts_range_with), with the optional terms when the case switches one on."""
     if laws.optional_terms(p):
         return _contacts_range_optional(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque,
-                                        contact_count)
-    return _contacts_range_plain(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count)
+                                        spill_viscous_damping, contact_count)
+    return _contacts_range_plain(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque,
+                                 spill_viscous_damping, contact_count)
 
 
 def _contacts_range_with(optional):
@@ -115,28 +120,31 @@ def _contacts_range_with(optional):
     (a constant of the closure)."""
 
     @nb.njit(cache=True, fastmath=FASTMATH)
-    def contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, contact_count):
+    def contacts_range(lo, hi, grains, nbr_start, nbr, p, spill_force, spill_torque, spill_viscous_damping,
+                       contact_count):
         """Forces and torques of grains lo..hi-1 and their list pairs; zeroes rows lo..hi-1 first.
 
-        Reactions on j >= hi go to spill_force/spill_torque (row j). contact_count[i] (if not empty):
-        touching pairs of grain i's list plus its wall contacts. Returns (max overlap of dynamic
-        grains, max overlap with a feed grain, one past the largest spilled j or hi). The walls of
-        grain i are handled in the same pass as its pairs, so that its force sums stay in registers
-        (one pass instead of two: 1.24x faster on the standard packing, docs/performance.md).
+        Reactions on j >= hi go to spill_force/spill_torque/spill_viscous_damping (row j).
+        contact_count[i] (if not empty): touching pairs of grain i's list plus its wall contacts.
+        Returns (max overlap of dynamic grains, max overlap with a feed grain, one past the largest
+        spilled j or hi). The walls of grain i are handled in the same pass as its pairs, so that its
+        force sums stay in registers (one pass instead of two: 1.24x faster on the standard packing,
+        docs/performance.md).
         """
-        pos, vel, omg, force, _, torque, wall_normal, _, kin, _ = grains
+        pos, vel, omg, force, _, torque, viscous_damping, wall_normal, _, in_feed, _ = grains
         force[lo:hi] = 0.0
         torque[lo:hi] = 0.0
+        viscous_damping[lo:hi] = 0.0
         pair = laws.pair_constants(p)
         wall = laws.wall_constants(p)
-        r = p[P.RADIUS]
+        r = p[params.RADIUS]
         dia = 2.0 * r
-        inner = p[P.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
+        inner = p[params.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
         max_overlap = 0.0
         max_feed = 0.0
         top = hi
         counting = contact_count.shape[0] > 0
-        implicit = p[P.IMPLICIT_SPIN] > 0.0  # torque[:, 3] is only read (and summed) then
+        implicit = p[params.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
         for i in range(lo, hi):
             touching = 0
             xi = pos[i, 0]
@@ -164,7 +172,7 @@ def _contacts_range_with(optional):
                 ny = dy * inv
                 nz = dz * inv
                 delta = dia - dist
-                if kin[i] or kin[j]:
+                if in_feed[i] or in_feed[j]:
                     max_feed = max(max_feed, delta)
                 else:
                     max_overlap = max(max_overlap, delta)
@@ -195,7 +203,7 @@ def _contacts_range_with(optional):
                     torque[j, 1] += tjy
                     torque[j, 2] += tjz
                     if implicit:
-                        torque[j, 3] += g
+                        viscous_damping[j] += g
                 else:
                     spill_force[j, 0] -= fx
                     spill_force[j, 1] -= fy
@@ -204,10 +212,10 @@ def _contacts_range_with(optional):
                     spill_torque[j, 1] += tjy
                     spill_torque[j, 2] += tjz
                     if implicit:
-                        spill_torque[j, 3] += g
+                        spill_viscous_damping[j] += g
                     top = max(top, j + 1)
             wall_normal[i] = 0.0
-            if not kin[i]:
+            if not in_feed[i]:
                 rho2 = yi * yi + zi * zi
                 if rho2 > inner * inner:
                     rho = math.sqrt(rho2)
@@ -245,7 +253,7 @@ def _contacts_range_with(optional):
             torque[i, 1] += tyi
             torque[i, 2] += tzi
             if implicit:
-                torque[i, 3] += gsum
+                viscous_damping[i] += gsum
             if counting:
                 contact_count[i] = touching
         return max_overlap, max_feed, top

@@ -19,7 +19,7 @@ from collections import namedtuple
 import numba as nb
 
 # The arrays of one gas field, in the order the kernels take them (engine.gas.GasField.arrays)
-GasArrays = namedtuple("GasArrays", "P dep phi kappa u src nodal wmat wvec area ay az g")
+GasArrays = namedtuple("GasArrays", "pressure dep phi kappa u src nodal wmat wvec area ay az g")
 
 # fastmath without nnan/ninf so that isfinite guards keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -614,9 +614,9 @@ def gas_content(P, phi, area, g):
 def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accumulate):
     """One grain step of the gas: deposit, fields, `substeps` gas steps of dt/substeps, drag forces.
 
-    The five kernels above in the required order on the arrays of `gas` (a GasArrays); P is
-    advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT] selects the split
-    scheme, which uses wvec as its work array (GasField sizes wvec for both).
+    The five kernels above in the required order on the arrays of `gas` (a GasArrays); P'
+    (gas.pressure) is advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT]
+    selects the split scheme, which uses wvec as its work array (GasField sizes wvec for both).
     """
     g = gas.g
     deposit(pos, vel, n, g, gas.dep)
@@ -624,13 +624,15 @@ def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accum
     volume_sources(gas.u, gas.area, gas.ay, gas.az, g, feed_volume_rate, gas.src)
     h = dt / substeps
     if g[G_SPLIT] > 0.5:
-        nx, ny, nz = gas.P.shape
+        nx, ny, nz = gas.pressure.shape
         longest = max(nx, max(ny, nz))
         work = gas.wvec.reshape(gas.wvec.size)[:10 * longest].reshape((10, longest))
         for _ in range(substeps):
-            gas_step_split(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, work)
+            gas_step_split(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta,
+                           work)
     else:
         for _ in range(substeps):
-            gas_step(gas.P, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta, gas.wmat, gas.wvec)
-    pressure_gradient(gas.P, gas.phi, gas.kappa, gas.u, g, feed_volume_rate, gas.nodal)
+            gas_step(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, g, h, theta,
+                     gas.wmat, gas.wvec)
+    pressure_gradient(gas.pressure, gas.phi, gas.kappa, gas.u, g, feed_volume_rate, gas.nodal)
     drag_forces(pos, n, gas.nodal, g, force, accumulate)

@@ -18,7 +18,7 @@ import math
 
 import numba as nb
 
-from . import params as P
+from . import params
 
 # fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -27,22 +27,22 @@ FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def pair_constants(p):
     """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I_rel/dt) between two grains."""
-    return (p[P.RADIUS], p[P.KN], p[P.GN_PAIR], p[P.MU_PAIR], p[P.GT], p[P.ROLLING_RESISTANCE],
-            0.5 * p[P.INERTIA] / p[P.DT])
+    return (p[params.RADIUS], p[params.KN], p[params.GN_PAIR], p[params.MU_PAIR], p[params.GT],
+            p[params.ROLLING_RESISTANCE], 0.5 * p[params.INERTIA] / p[params.DT])
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def wall_constants(p):
     """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I/dt) between a grain and a wall."""
-    return (p[P.RADIUS], p[P.KN], p[P.GN_WALL], p[P.MU_WALL], p[P.GT_WALL], p[P.ROLLING_RESISTANCE],
-            p[P.INERTIA] / p[P.DT])
+    return (p[params.RADIUS], p[params.KN], p[params.GN_WALL], p[params.MU_WALL], p[params.GT_WALL],
+            p[params.ROLLING_RESISTANCE], p[params.INERTIA] / p[params.DT])
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def optional_terms(p):
     """Whether a case switches on a contact term that is not in the papers' model (then the
     contact loop with the optional terms runs)."""
-    return p[P.ROLLING_RESISTANCE] > 0.0
+    return p[params.ROLLING_RESISTANCE] > 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -130,9 +130,10 @@ def kick_constants(p, kick_dt):
     """(a, b, c, gx, gy, gz, rotate, implicit) of a kick by kick_dt: the velocity per force kick_dt/m,
     the spin per torque kick_dt/I, the implicit-spin factor kick_dt r^2/I, the velocity change by
     the body forces (gravity) and the two switches."""
-    return (kick_dt / p[P.MASS], kick_dt / p[P.INERTIA], kick_dt * p[P.RADIUS] * p[P.RADIUS] / p[P.INERTIA],
-            kick_dt * p[P.GX], kick_dt * p[P.GY], kick_dt * p[P.GZ],
-            p[P.ROTATION] > 0.0, p[P.IMPLICIT_SPIN] > 0.0)
+    return (kick_dt / p[params.MASS], kick_dt / p[params.INERTIA],
+            kick_dt * p[params.RADIUS] * p[params.RADIUS] / p[params.INERTIA],
+            kick_dt * p[params.GX], kick_dt * p[params.GY], kick_dt * p[params.GZ],
+            p[params.ROTATION] > 0.0, p[params.IMPLICIT_SPIN] > 0.0)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")

@@ -7,37 +7,37 @@ the outlet are dropped in the same pass.
 
 import numba as nb
 
-from . import params as P
+from . import params
 
 
 @nb.njit(cache=True, inline="always")
 def _cell_index(x, y, z, p, shape):
     """(cx, cy, cz) of a point, clamped to the grid (clamping only merges far cells, never splits)."""
-    cx = int((x - p[P.CELL_X0]) / p[P.CELL_DX])
-    half = p[P.TUBE_RADIUS]
-    cy = int((y + half) / p[P.CELL_DYZ])
-    cz = int((z + half) / p[P.CELL_DYZ])
-    cx = min(max(cx, 0), shape[P.NCX] - 1)
-    cy = min(max(cy, 0), shape[P.NCY] - 1)
-    cz = min(max(cz, 0), shape[P.NCZ] - 1)
+    cx = int((x - p[params.CELL_X0]) / p[params.CELL_DX])
+    half = p[params.TUBE_RADIUS]
+    cy = int((y + half) / p[params.CELL_DYZ])
+    cz = int((z + half) / p[params.CELL_DYZ])
+    cx = min(max(cx, 0), shape[params.NCX] - 1)
+    cy = min(max(cy, 0), shape[params.NCY] - 1)
+    cz = min(max(cz, 0), shape[params.NCZ] - 1)
     return cx, cy, cz
 
 
 @nb.njit(cache=True)
-def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+def sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                      counters):
     """Drop dynamic grains past x = L (counted in counters[REMOVED]), sort the rest by cell.
 
     Returns the new number of grains. cell_start (ncells + 1) holds each cell's first sorted index.
     """
-    length = p[P.TUBE_LENGTH]
-    ncy = shape[P.NCY]
-    ncz = shape[P.NCZ]
-    ncells = shape[P.NCX] * ncy * ncz
+    length = p[params.TUBE_LENGTH]
+    ncy = shape[params.NCY]
+    ncz = shape[params.NCZ]
+    ncells = shape[params.NCX] * ncy * ncz
     cell_start[:] = 0
     n_removed = 0
     for i in range(n):
-        if pos[i, 0] > length and not kin[i]:
+        if pos[i, 0] > length and not in_feed[i]:
             cell_of[i] = -1
             n_removed += 1
             continue
@@ -69,25 +69,25 @@ def sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cel
         tmpi[k] = gid[order[k]]
     gid[:m] = tmpi[:m]
     for k in range(m):
-        tmpi[k] = kin[order[k]]
-    kin[:m] = tmpi[:m]
-    counters[P.REMOVED] += n_removed
+        tmpi[k] = in_feed[order[k]]
+    in_feed[:m] = tmpi[:m]
+    counters[params.REMOVED] += n_removed
     return m
 
 
 @nb.njit(cache=True)
-def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
+def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
     """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
 
     Returns the number of pairs, or -1 if nbr is too small (the caller grows it and calls again).
     Pairs of two kinematic (feed) grains are skipped.
     """
-    r = p[P.RADIUS]
-    cut = 2.0 * r + p[P.SKIN]
+    r = p[params.RADIUS]
+    cut = 2.0 * r + p[params.SKIN]
     cut2 = cut * cut
-    ncx = shape[P.NCX]
-    ncy = shape[P.NCY]
-    ncz = shape[P.NCZ]
+    ncx = shape[params.NCX]
+    ncy = shape[params.NCY]
+    ncz = shape[params.NCZ]
     cap = nbr.shape[0]
     k = 0
     for i in range(n):
@@ -103,7 +103,7 @@ def build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr):
                 for az in range(cz if ax == cx and ay == cy else max(cz - 1, 0), min(cz + 2, ncz)):
                     c = (ax * ncy + ay) * ncz + az
                     for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
-                        if kin[i] and kin[j]:
+                        if in_feed[i] and in_feed[j]:
                             continue
                         dx = pos[j, 0] - xi
                         dy = pos[j, 1] - yi

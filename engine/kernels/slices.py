@@ -25,7 +25,7 @@ def _volume_below(t, x, r):
 
 
 @nb.njit(cache=True)
-def accumulate_slices(pos, vel, contact_force, drag_force, wall_normal, kin, n, r, mass, gx, width, acc):
+def accumulate_slices(pos, vel, contact_force, drag_force, wall_normal, in_feed, n, r, mass, gx, width, acc):
     """Add each dynamic grain's volume-weighted contributions to the slices of `width` (m) from x=0.
 
     acc has shape (nslices, NCOLS) and is zeroed here.
@@ -34,7 +34,7 @@ def accumulate_slices(pos, vel, contact_force, drag_force, wall_normal, kin, n, 
     nslices = acc.shape[0]
     vp = 4.0 / 3.0 * math.pi * r**3
     for i in range(n):
-        if kin[i]:
+        if in_feed[i]:
             continue
         x = pos[i, 0]
         first = max(int((x - r) / width), 0)

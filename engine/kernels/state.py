@@ -3,15 +3,19 @@
 from collections import namedtuple
 
 # Per-grain arrays, rows 0..n-1 in use: centres, velocities, spins (m, m/s, rad/s); contact force and
-# gas drag (N); torque (N m) in columns 0-2 and the sum of gamma_t of the grain's contacts in their
-# viscous branch in column 3 (N s/m, numerics.implicit_spin); normal force of the cylinder (N); id;
-# 1 for a feed (kinematic) grain; centre at the last neighbour-list build (m).
-Grains = namedtuple("Grains", "pos vel omg force drag torque wall_normal gid kin pos_ref")
+# gas drag (N); torque (N m); the sum of gamma_t of the grain's contacts in their viscous branch
+# (N s/m, the implicit spin kick's denominator, numerics.implicit_spin); normal force of the cylinder
+# (N); id; 1 for a grain of the feed piston (held kinematically); centre at the last neighbour-list
+# build (m).
+Grains = namedtuple("Grains",
+                    "pos vel omg force drag torque viscous_damping wall_normal gid in_feed pos_ref")
 
 # Cell grid and half neighbour list: grid shape (ncx, ncy, ncz), cell starts, each grain's cell,
 # sort order and sort work arrays, list starts per grain and the list (params.CELL_*, SKIN).
 Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nbr_start nbr")
 
-# Thread work arrays of contacts.evaluate_contacts: spill rows of forces and torques per chunk (zero
-# between calls), chunk bounds (nchunks + 1), per-chunk diagnostics, touching contacts per grain.
-Chunks = namedtuple("Chunks", "spill_force spill_torque bounds chunk_diag contact_count")
+# Thread work arrays of contacts.evaluate_contacts: spill rows of forces, torques and viscous damping
+# sums per chunk (zero between calls), chunk bounds (nchunks + 1), per-chunk diagnostics, touching
+# contacts per grain.
+Chunks = namedtuple("Chunks",
+                    "spill_force spill_torque spill_viscous_damping bounds chunk_diag contact_count")

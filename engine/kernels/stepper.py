@@ -2,7 +2,7 @@
 
 Forces that depend on velocity use the half-step velocity, as LAMMPS's fix nve/sphere does.
 With numerics.implicit_spin a grain's spin kick is divided by 1 + kick_dt r^2/I sum(gamma_t) over its
-contacts in the viscous branch (torque[:, 3]): the dashpots' action on the grain's own spin taken
+contacts in the viscous branch (viscous_damping): the dashpots' action on the grain's own spin taken
 implicitly, so that a packed bed's spins do not chatter when gamma_t dt/(m/7) nears 1 (the fixed
 points are unchanged; the split of a sticking impulse between spin and translation is not exact,
 docs/performance.md, "The tangential dashpot and the time step").
@@ -13,7 +13,7 @@ import math
 import numba as nb
 
 from . import laws
-from . import params as P
+from . import params
 from .contacts import evaluate_contacts
 from .gas import couple
 from .laws import FASTMATH
@@ -26,31 +26,32 @@ def rebuild(grains, n, p, nbrs, counters):
 
     On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbrs.nbr and retries).
     """
-    pos, vel, omg, _, drag, _, _, gid, kin, pos_ref = grains
+    pos, vel, omg, _, drag, _, _, _, gid, in_feed, pos_ref = grains
     shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = nbrs
-    n = sort_and_compact(pos, vel, omg, drag, gid, kin, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
+    n = sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
     pos_ref[:n] = pos[:n]
-    npairs = build_neighbor_list(pos, kin, n, p, shape, cell_start, nbr_start, nbr)
-    counters[P.OVERFLOW] = 1 if npairs < 0 else 0
-    counters[P.REBUILDS] += 1
+    npairs = build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr)
+    counters[params.OVERFLOW] = 1 if npairs < 0 else 0
+    counters[params.REBUILDS] += 1
     return n
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
 def _kick(grains, n, p, kick_dt):
     """Velocity update of the dynamic grains by kick_dt (laws.kick)."""
-    vel, omg, force, drag, torque, kin = grains.vel, grains.omg, grains.force, grains.drag, grains.torque, grains.kin
+    vel, omg, force, drag, torque = grains.vel, grains.omg, grains.force, grains.drag, grains.torque
+    viscous_damping, in_feed = grains.viscous_damping, grains.in_feed
     k = laws.kick_constants(p, kick_dt)
     rotate = k[6]
     for i in range(n):
-        if kin[i]:
+        if in_feed[i]:
             continue
         vel[i, 0], vel[i, 1], vel[i, 2] = laws.velocity_kick(
             vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0], force[i, 1] + drag[i, 1],
             force[i, 2] + drag[i, 2], k, False)
         if rotate:
-            bb = laws.spin_kick(torque[i, 3], k)
+            bb = laws.spin_kick(viscous_damping[i], k)
             omg[i, 0] += bb * torque[i, 0]
             omg[i, 1] += bb * torque[i, 1]
             omg[i, 2] += bb * torque[i, 2]
@@ -65,22 +66,22 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     Returns 1 if the neighbour list must be rebuilt (a grain moved half the skin, left the tube or
     was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
-    pos, vel, omg, force, drag, torque, _, _, kin, pos_ref = grains
-    dt = p[P.DT]
-    r = p[P.RADIUS]
+    pos, vel, omg, force, drag, torque, viscous_damping, _, _, in_feed, pos_ref = grains
+    dt = p[params.DT]
+    r = p[params.RADIUS]
     k = laws.kick_constants(p, kick_dt)
     rotate = k[6]
-    feed_dx = p[P.FEED_SPEED] * dt
-    limit2 = 0.25 * p[P.SKIN] * p[P.SKIN]
-    outlet = p[P.TUBE_LENGTH]
-    tube2 = p[P.TUBE_RADIUS] * p[P.TUBE_RADIUS]
+    feed_dx = p[params.FEED_SPEED] * dt
+    limit2 = 0.25 * p[params.SKIN] * p[params.SKIN]
+    outlet = p[params.TUBE_LENGTH]
+    tube2 = p[params.TUBE_RADIUS] * p[params.TUBE_RADIUS]
     need = 0
     for i in range(n):
-        if kin[i]:
+        if in_feed[i]:
             pos[i, 0] += feed_dx
             if pos[i, 0] >= r:
-                kin[i] = 0
-                counters[P.RELEASED] += 1
+                in_feed[i] = 0
+                counters[params.RELEASED] += 1
                 need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
             vx, vy, vz = laws.velocity_kick(vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0],
@@ -89,7 +90,7 @@ def _kick_drift(grains, n, p, kick_dt, counters):
             vel[i, 1] = vy
             vel[i, 2] = vz
             if rotate:
-                bb = laws.spin_kick(torque[i, 3], k)
+                bb = laws.spin_kick(viscous_damping[i], k)
                 omg[i, 0] += bb * torque[i, 0]
                 omg[i, 1] += bb * torque[i, 1]
                 omg[i, 2] += bb * torque[i, 2]
@@ -100,10 +101,10 @@ def _kick_drift(grains, n, p, kick_dt, counters):
             pos[i, 1] = y
             pos[i, 2] = z
             if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-                counters[P.STATUS] = P.NONFINITE
+                counters[params.STATUS] = params.NONFINITE
                 return 1
             if y * y + z * z > tube2 or x < -r:
-                counters[P.STATUS] = P.ESCAPED
+                counters[params.STATUS] = params.ESCAPED
                 return 1
             if x > outlet:
                 need = 1
@@ -126,31 +127,31 @@ def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks):
     a gas.GasArrays.
     """
     n = state_n[0]
-    dt = p[P.DT]
+    dt = p[params.DT]
     kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
     taken = 0
     for _ in range(nsteps):
         need = _kick_drift(grains, n, p, kick_dt, counters)
-        if counters[P.STATUS] != P.OK:
+        if counters[params.STATUS] != params.OK:
             break
         if need:
             n = rebuild(grains, n, p, nbrs, counters)
-            if counters[P.OVERFLOW]:
+            if counters[params.OVERFLOW]:
                 break  # velocities are at the half step: the caller's finish_step completes it
-        if p[P.GAS_ON] > 0.0 and counters[P.STEPS] % int(p[P.GAS_INTERVAL]) == 0:
-            couple(grains.pos, grains.vel, n, gas, dt * p[P.GAS_INTERVAL], 1, p[P.GAS_THETA],
-                   p[P.FEED_VOLUME_RATE], grains.drag, False)
+        if p[params.GAS_ON] > 0.0 and counters[params.STEPS] % int(p[params.GAS_INTERVAL]) == 0:
+            couple(grains.pos, grains.vel, n, gas, dt * p[params.GAS_INTERVAL], 1, p[params.GAS_THETA],
+                   p[params.FEED_VOLUME_RATE], grains.drag, False)
         _forces(grains, n, p, nbrs, counters, diag, chunks)
         taken += 1
         kick_dt = dt
-        if diag[P.DIAG_FEED_OVERLAP] <= p[P.FEED_MAX_OVERLAP]:
-            counters[P.PRESSED_STEPS] = 0
+        if diag[params.DIAG_FEED_OVERLAP] <= p[params.FEED_MAX_OVERLAP]:
+            counters[params.PRESSED_STEPS] = 0
         else:
-            counters[P.PRESSED_STEPS] += 1
-            if counters[P.PRESSED_STEPS] >= p[P.FEED_BLOCK_STEPS]:
-                counters[P.STATUS] = P.BLOCKED
+            counters[params.PRESSED_STEPS] += 1
+            if counters[params.PRESSED_STEPS] >= p[params.FEED_BLOCK_STEPS]:
+                counters[params.STATUS] = params.BLOCKED
                 break
-    if taken > 0 and (taken == nsteps or counters[P.STATUS] == P.BLOCKED):
+    if taken > 0 and (taken == nsteps or counters[params.STATUS] == params.BLOCKED):
         _kick(grains, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
@@ -162,20 +163,21 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks):
     evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks)
     # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
     # so that the run guard sees every step, not only a frame's last
-    diag[P.DIAG_RUNNING_MAX] = max(diag[P.DIAG_RUNNING_MAX], diag[P.DIAG_OVERLAP], diag[P.DIAG_FEED_OVERLAP])
-    if p[P.FEED_SPEED] > 0.0:
+    diag[params.DIAG_RUNNING_MAX] = max(diag[params.DIAG_RUNNING_MAX], diag[params.DIAG_OVERLAP],
+                                        diag[params.DIAG_FEED_OVERLAP])
+    if p[params.FEED_SPEED] > 0.0:
         # the feed grains carry the reactions of their contacts: minus their sum is the piston's push
-        kin, force = grains.kin, grains.force
+        in_feed, force = grains.in_feed, grains.force
         push = 0.0
         for i in range(n):
-            if kin[i]:
+            if in_feed[i]:
                 push -= force[i, 0]
-        diag[P.DIAG_PISTON_IMPULSE] += push * p[P.DT]
-    counters[P.STEPS] += 1
+        diag[params.DIAG_PISTON_IMPULSE] += push * p[params.DT]
+    counters[params.STEPS] += 1
 
 
 @nb.njit(cache=True)
 def finish_step(grains, n, p, nbrs, counters, diag, chunks):
     """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
     _forces(grains, n, p, nbrs, counters, diag, chunks)
-    _kick(grains, n, p, 0.5 * p[P.DT])
+    _kick(grains, n, p, 0.5 * p[params.DT])

@@ -210,10 +210,10 @@ def run_mode(theta, steps, transverse=False):
     f.set_solid_fraction(0.6)
     rate, _ = mode_rate(f, 0.4, transverse)
     _, shape = mode_field(f, transverse)
-    f.P[:] = shape
+    f.pressure[:] = shape
     t_end = 1.0 / rate
     f.step(t_end, substeps=steps)
-    return f.P[0, 0, 0] / shape[0, 0, 0], math.exp(-1.0), f, shape
+    return f.pressure[0, 0, 0] / shape[0, 0, 0], math.exp(-1.0), f, shape
 
 
 def test_mode_decays_at_the_analytic_rate():
@@ -227,7 +227,7 @@ def test_mode_decays_at_the_analytic_rate():
     assert measured == pytest.approx(continuum * (1 - (math.pi / 300) ** 2 / 12), rel=1e-6)
     assert measured == pytest.approx(continuum, rel=1.5e-5)
     # the mode keeps its shape: it is an exact eigenvector of the discrete operator
-    assert np.allclose(f.P, ratio * shape, rtol=0, atol=1e-12)
+    assert np.allclose(f.pressure, ratio * shape, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("theta, order", [(1.0, 1.0), (0.5, 2.0)])
@@ -264,7 +264,7 @@ def test_darcy_gradient_in_a_fixed_bed(outlet, vs, nodes):
     assert np.allclose(grad[..., 1:], 0.0, atol=1e-9 * abs(expect))
     assert f.pressure_drop() == pytest.approx(-expect * L, rel=1e-9)
     if outlet == "open":
-        assert np.allclose(f.P[:, 0, 0], -expect * (L - f.x), rtol=1e-9)
+        assert np.allclose(f.pressure[:, 0, 0], -expect * (L - f.x), rtol=1e-9)
 
 
 @pytest.mark.parametrize("face, cells_of_resistance", [("harmonic", 10), ("arithmetic", 9)])
@@ -346,10 +346,10 @@ def test_step_equals_a_direct_sparse_solve(nodes, theta):
     rhs = cap * p_old.ravel() + (1 - theta) * dt * (op @ p_old.ravel()) + dt * f.src.ravel()
     ref = np.zeros(cap.size)
     ref[active] = spla.spsolve(a, rhs[active])
-    f.P[:] = p_old
+    f.pressure[:] = p_old
     f.step(dt)
     # both are direct solves of the same system; condition number ~ diffusion number ~1e4
-    assert np.allclose(f.P.ravel(), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+    assert np.allclose(f.pressure.ravel(), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
 
 
 def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
@@ -360,15 +360,15 @@ def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
     random_bed(f, rng, stratified=True)
     op, _ = operator(f)
     steady = spla.spsolve(op, -f.src.ravel()).reshape(f.nodes)
-    f.P[:] = steady
+    f.pressure[:] = steady
     for _ in range(60):
         f.step(1e-5)
-    assert np.allclose(f.P, steady, rtol=1e-9, atol=0)  # round-off of 60 solves
-    f.P[:] = steady
+    assert np.allclose(f.pressure, steady, rtol=1e-9, atol=0)  # round-off of 60 solves
+    f.pressure[:] = steady
     for _ in range(60):
         f.step(1e-5, split=True)
     # splitting error of the fixed point: measured ~100 % at dt = 1e-5 s
-    assert np.abs(f.P - steady).max() > 0.3 * steady.max()
+    assert np.abs(f.pressure - steady).max() > 0.3 * steady.max()
 
 
 @pytest.mark.parametrize("theta", [1.0, 0.5])
@@ -377,9 +377,9 @@ def test_gas_content_is_conserved_with_balanced_fluxes(theta):
     rng = np.random.default_rng(5)
     f = gas.GasField(outlet="flux", superficial_velocity=2.0, theta=theta)
     random_bed(f, rng)
-    f.P[:] = rng.normal(size=f.nodes) * 100
+    f.pressure[:] = rng.normal(size=f.nodes) * 100
     start = f.gas_content()
-    scale = np.sum(f.phi * f.node_volume * np.abs(f.P))
+    scale = np.sum(f.phi * f.node_volume * np.abs(f.pressure))
     worst = 0.0
     steps = 1000
     for dt in 10 ** rng.uniform(-6, -3, steps):
@@ -410,11 +410,11 @@ def test_gas_budget_with_open_outlet_and_moving_grains():
     cond = 2 * P0 / ETA * area / hx * f.kappa[-1]
     for theta in (1.0, 0.5):
         f.theta = theta
-        f.P[:] = rng.normal(size=f.nodes)
-        before, p_old = f.gas_content(), f.P[-1].copy()
+        f.pressure[:] = rng.normal(size=f.nodes)
+        before, p_old = f.gas_content(), f.pressure[-1].copy()
         dt = 1e-4
         f.step(dt)
-        outflow = np.sum(cond * (theta * f.P[-1] + (1 - theta) * p_old))
+        outflow = np.sum(cond * (theta * f.pressure[-1] + (1 - theta) * p_old))
         expect = before + dt * (f.src.sum() - outflow)
         assert f.gas_content() == pytest.approx(expect, rel=1e-9, abs=1e-9 * abs(before))
 
@@ -430,7 +430,7 @@ def test_substeps_equal_repeated_steps():
     a.step(1e-4, substeps=4)
     for _ in range(4):
         b.step(2.5e-5)
-    assert np.array_equal(a.P, b.P)
+    assert np.array_equal(a.pressure, b.pressure)
 
 
 # --- drag on grains ----------------------------------------------------------------------------
@@ -446,7 +446,7 @@ def test_single_grain_in_a_uniform_gradient(bed):
     else:
         f.deposit(grain)
     gvec = np.array([-2500.0, 300.0, -700.0])
-    f.P[:] = (gvec[0] * f.x[:, None, None] + gvec[1] * f.y[None, :, None]
+    f.pressure[:] = (gvec[0] * f.x[:, None, None] + gvec[1] * f.y[None, :, None]
               + gvec[2] * f.z[None, None, :])
     force = f.drag_forces(grain)[0]
     if bed:
@@ -466,7 +466,7 @@ def test_single_grain_in_a_uniform_gradient(bed):
 def test_drag_overwrites_or_accumulates():
     f = gas.GasField(nodes=(20, 2, 2))
     f.set_solid_fraction(0.5)
-    f.P[:] = -1000.0 * f.x[:, None, None]
+    f.pressure[:] = -1000.0 * f.x[:, None, None]
     f.pressure_gradient()
     pos = np.array([[0.1, 0.0, 0.0], [0.2, 0.001, 0.0], [L + 0.01, 0, 0]])
     force = np.ones((4, 3))
@@ -494,9 +494,9 @@ def test_couple_kernel_matches_the_wrapper_sequence(scheme):
     K.couple(pos, vel, n, b.arrays(), 1e-5, 2, b.theta, b.feed_volume_rate, force, False)
     # the same arithmetic; compiled into couple, fastmath may contract the split solves
     # differently (measured 4e-13 of the largest P')
-    assert np.abs(a.P - b.P).max() <= 1e-12 * np.abs(a.P).max()
+    assert np.abs(a.pressure - b.pressure).max() <= 1e-12 * np.abs(a.pressure).max()
     if scheme == "unsplit":
-        assert np.array_equal(a.P, b.P)
+        assert np.array_equal(a.pressure, b.pressure)
         assert np.allclose(force, expect, rtol=1e-14, atol=0)
     else:  # gradients difference the 4e-13 discrepancy of neighbouring nodes (measured 1e-11)
         assert np.abs(force - expect).max() <= 1e-9 * np.abs(expect).max()
@@ -518,10 +518,10 @@ def startup(vs, eta, dt, theta, steps=None, bed=None):
     if steps is None:
         slowest = P0 * KAPPA_EMPTY / eta * (math.pi / (2 * L)) ** 2
         steps = math.ceil(math.log(1e8) / math.log1p(slowest * dt))
-    hist = [f.P.copy()]
+    hist = [f.pressure.copy()]
     for _ in range(steps):
         f.step(dt)
-        hist.append(f.P.copy())
+        hist.append(f.pressure.copy())
     return np.array(hist), steady, f
 
 
@@ -584,13 +584,13 @@ def test_pressure_spike_sign_flips_unless_backward_euler(theta, factor):
     values = {}
     for th in (theta, 1.0):
         f = gas.GasField(superficial_velocity=0.0, theta=th)
-        f.P[75, 0, 0] = 100.0
+        f.pressure[75, 0, 0] = 100.0
         hist = []
         for _ in range(6):
             f.step(1e-4)
-            hist.append(f.P[75, 0, 0])
+            hist.append(f.pressure[75, 0, 0])
             if th == 1.0:
-                assert f.P.min() >= -1e-10
+                assert f.pressure.min() >= -1e-10
         values[th] = np.array(hist)
     ratios = values[theta][1:] / values[theta][:-1]
     # the stiffest modes dominate a one-node spike: the per-step ratio is within 1 % of the limit
@@ -613,7 +613,7 @@ def test_bad_input_is_refused_naming_the_key(kwargs):
 def test_drag_on_a_grain_missing_from_the_deposit_stays_finite():
     """A grain inserted after the deposit (empty node, phi = 1) gets the single-grain floor."""
     f = gas.GasField()
-    f.P[:] = -1000.0 * f.x[:, None, None]
+    f.pressure[:] = -1000.0 * f.x[:, None, None]
     force = f.drag_forces(np.array([[0.2, 0.0, 0.0]]))
     assert np.all(np.isfinite(force))
     assert force[0, 0] == pytest.approx(f.g[K.G_VP] * 1000.0 / f.g[K.G_SOLID_MIN], rel=1e-12)

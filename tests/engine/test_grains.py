@@ -132,7 +132,7 @@ def test_rolling_resistance_off_by_default_leaves_a_rolling_grain_rolling():
 
 def test_rolling_resistance_between_grains_acts_against_their_relative_spin():
     from engine.kernels import laws
-    from engine.kernels import params as P
+    from engine.kernels import params
 
     @numba.njit
     def torques(p, rolling, fn):
@@ -141,8 +141,8 @@ def test_rolling_resistance_between_grains_acts_against_their_relative_spin():
         return laws.surface_forces(fn, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, c, rolling)
 
     p = Simulation(grain_case("particles.rolling_resistance=0.1"))._p
-    r = p[P.RADIUS]
-    cap = 0.5 * p[P.INERTIA] * 2.0 / p[P.DT]  # (I/2) |w_rel| / dt: one step cannot reverse w_rel
+    r = p[params.RADIUS]
+    cap = 0.5 * p[params.INERTIA] * 2.0 / p[params.DT]  # (I/2) |w_rel| / dt: one step cannot reverse w_rel
     fn = 1e-5  # N: mu_r r F_n = 7e-10 N m, below the cap (3e-8 N m at the defaults)
     assert 0.1 * r * fn < cap
     off = np.array(torques(p, False, fn))

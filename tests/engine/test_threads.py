@@ -8,7 +8,7 @@ import pytest
 from engine import Case, Simulation
 from engine.bench import settled_simulation
 from engine.cli import main as cli_main
-from engine.kernels import params as P
+from engine.kernels import params
 from engine.kernels.contacts import contact_forces, contact_forces_chunked
 from engine.kernels.state import Chunks
 
@@ -23,36 +23,38 @@ def packing():
 
 def _forces(sim, nchunks):
     n, cap = sim.n_particles, len(sim._pos)
-    # torque column 3: the sum of gamma_t of each grain's viscous contacts (numerics.implicit_spin)
-    force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 4)), np.zeros(cap), np.zeros(3)
+    force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 3)), np.zeros(cap), np.zeros(3)
+    damping = np.zeros(cap)  # the sum of gamma_t of each grain's viscous contacts (numerics.implicit_spin)
     p = sim._p.copy()
-    p[P.IMPLICIT_SPIN] = 1.0  # so that column 3 is summed
-    grains = sim._grains()._replace(force=force, torque=torque, wall_normal=wall)
+    p[params.IMPLICIT_SPIN] = 1.0  # so that the viscous damping is summed
+    grains = sim._grains()._replace(force=force, torque=torque, viscous_damping=damping, wall_normal=wall)
     args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
         contact_forces(*args)
-        return force[:n], torque[:n], wall[:n], diag, None
-    spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 4))
+        return force[:n], torque[:n], damping[:n], wall[:n], diag, None
+    spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 3))
+    spill_d = np.zeros((nchunks, cap))
     bounds, chunk_diag, count = np.zeros(nchunks + 1, np.int64), np.zeros((nchunks, 3)), np.zeros(cap, np.int64)
-    contact_forces_chunked(*args, Chunks(spill_f, spill_t, bounds, chunk_diag, count))
-    assert not spill_f.any() and not spill_t.any(), "spill rows must be zero again after the call"
+    contact_forces_chunked(*args, Chunks(spill_f, spill_t, spill_d, bounds, chunk_diag, count))
+    assert not spill_f.any() and not spill_t.any() and not spill_d.any(), \
+        "spill rows must be zero again after the call"
     spilled = (chunk_diag[:, 2] > bounds[1:]).sum()
-    return force[:n], torque[:n], wall[:n], diag, spilled
+    return force[:n], torque[:n], damping[:n], wall[:n], diag, spilled
 
 
 @pytest.mark.parametrize("nchunks", [2, 3, 7])
 def test_chunked_contact_forces_equal_the_serial_sum(packing, nchunks):
-    f1, t1, w1, d1, _ = _forces(packing, 1)
-    f2, t2, w2, d2, spilled = _forces(packing, nchunks)
+    f1, t1, g1, w1, d1, _ = _forces(packing, 1)
+    f2, t2, g2, w2, d2, spilled = _forces(packing, nchunks)
     assert spilled == nchunks - 1, "every chunk but the last has pairs reaching into the next one"
     # Only the order of summation of a grain's pair forces differs: a few ulp of the largest
     # terms (|F| ~ k_n * overlap ~ 1e-4 N), far below 1e-12 of the largest force.
     scale = np.abs(f1).max()
     np.testing.assert_allclose(f2, f1, rtol=0, atol=1e-12 * scale)
-    np.testing.assert_allclose(t2[:, :3], t1[:, :3], rtol=0, atol=1e-12 * np.abs(t1[:, :3]).max())
+    np.testing.assert_allclose(t2, t1, rtol=0, atol=1e-12 * np.abs(t1).max())
     # the viscous gamma_t sums cross chunk borders too (sums of equal gamma_t: exact up to rounding)
-    assert t1[:, 3].max() > 0
-    np.testing.assert_allclose(t2[:, 3], t1[:, 3], rtol=1e-14)
+    assert g1.max() > 0
+    np.testing.assert_allclose(g2, g1, rtol=1e-14)
     np.testing.assert_array_equal(w2, w1)  # walls are summed per grain, in one chunk: identical
     np.testing.assert_array_equal(d2[:2], d1[:2])
 
