@@ -507,7 +507,7 @@ def _fmt(value: Any, spec: str) -> str:
 def write_markdown(rows: list[dict], path: Path, attrs: dict) -> None:
     lines = ["# Numerical-stability stress sweep", "",
              f"**{headline(rows)}.** Total wall time {attrs['total_wall_s']:.0f} s on one thread "
-             f"({attrs['machine']}, {attrs['date']}).", "",
+             f"({attrs['machine']}; the run's date is in the CSV's attributes).", "",
              f"Each case: `{attrs['bases']}` with {attrs['common']} plus the overrides listed, run "
              f"for `duration` simulated seconds (1 s; 0.5 s for the dense feeds) from an empty tube, the "
              f"loop of engine.run.run_case. `refused`: engine.CaseError before any step. `stopped`: the "
