@@ -144,10 +144,11 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("gas.theta", 1.0, "1",
         "Implicitness of the gas time scheme (1 = backward Euler, 0.5 = Crank-Nicolson); below 1 the "
         "stiff dilute-cell modes flip sign every step (docs/gas.md).", low=0.5, high=1.0),
-    Key("gas.face_permeability", "harmonic", "",
-        "Permeability on a face between two gas nodes in the discretised eq. (5): the harmonic "
-        "mean of the two nodes' kappa (two half cells in series) or their arithmetic mean; the "
-        "papers do not say.", kind=str, choices=("harmonic", "arithmetic")),
+    Key("gas.face_permeability", "arithmetic", "",
+        "Permeability on a face between two gas nodes in the discretised eq. (5): the arithmetic "
+        "mean of the two nodes' kappa or their harmonic mean (two half cells in series); the "
+        "papers do not say (choice: docs/decisions/0018-gas-discretisation-readings.md).",
+        kind=str, choices=("harmonic", "arithmetic")),
     Key("gas.scheme", "unsplit", "",
         "Gas time scheme: the theta scheme on the whole 3-D operator (unsplit) or one theta solve "
         "per dimension in turn (split: the papers' 'each dimension is integrated separately'; its "
@@ -157,9 +158,9 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "Volume that normalises the eq. (8) deposit into a node porosity: the node's share of the "
         "tube (tube) or the whole cubic grid cell hx hy hz (cell: the cells overhang the round "
         "tube, so a packing reads a higher porosity).", kind=str, choices=("tube", "cell")),
-    Key("gas.inlet_displaced_volume", True, "",
+    Key("gas.inlet_displaced_volume", False, "",
         "Add the volume of the entering grains (m_dot / rho_s) to the inlet gas flux v_s A "
-        "(false: the inlet carries the gas flux alone, as the papers' source S ~ v_g P0).",
+        "(false: the inlet carries the gas flux alone, the papers' source S ~ v_g P0).",
         kind=bool),
     Key("gas.porosity_max", 0.999, "1",
         "Ceiling of the porosity inside the Carman-Kozeny permeability only (a numerical guard: "
