@@ -14,11 +14,12 @@ R_TUBE = 3.5e-3
 LAYERS = 24  # 456 grains, a bed about 3.5 cm high
 
 
-def bed(superficial_velocity):
+def bed(superficial_velocity, face="arithmetic"):
     """A vertical 10.5 cm tube with a packed bed resting on the inlet wall."""
     case = Case().with_overrides([
         "tube.inclination_deg=90", "tube.length=0.105", "gas.nodes_x=30", "feed.mass_flow_kg_h=0",
-        "wall.friction=0", f"gas.superficial_velocity={superficial_velocity}"])
+        "wall.friction=0", f"gas.superficial_velocity={superficial_velocity}",
+        f"gas.face_permeability={face}"])
     sim = Simulation(case)
     template = layer_template(R_TUBE, D_GRAIN)
     layers = [np.column_stack([np.full(len(template), D_GRAIN * (0.6 + 1.02 * k)), template])
@@ -44,8 +45,9 @@ def mean_drop(sim, seconds, samples=50):
     return float(np.mean(values))
 
 
-def test_bed_below_minimum_fluidisation_stays_put_and_follows_darcy():
-    sim = bed(0.03)
+@pytest.mark.parametrize("face", ["harmonic", "arithmetic"])
+def test_bed_below_minimum_fluidisation_stays_put_and_follows_darcy(face):
+    sim = bed(0.03, face)
     sim.advance(0.3)  # the ring layers collapse into a random packing within ~0.15 s
     start = sim.positions[:, 0].mean()
     drop = mean_drop(sim, 0.05)
@@ -57,9 +59,16 @@ def test_bed_below_minimum_fluidisation_stays_put_and_follows_darcy():
     weight = sim.n_particles * sim.model.mass * 9.81
     area = math.pi * R_TUBE**2
     assert drop * area < 0.5 * weight, "not below minimum fluidisation"
-    # The solver's drop against Darcy's law integrated over the node porosities: the faces use
-    # harmonic means of kappa instead of node values, about 1 % at the bed's ends (measured 1 %).
-    assert drop == pytest.approx(darcy_drop(sim), rel=0.03)
+    # The solver's drop against Darcy's law integrated over the node porosities. Harmonic faces
+    # (half cells in series) differ from it only at the bed's partly filled end nodes (measured
+    # 0.2 %). An arithmetic face between a packed and a nearly empty node has about half the empty
+    # node's kappa, so each end loses up to half a cell of resistance: at most 1/10 of this 10-cell
+    # bed, and never more resistance than Darcy's (measured 5.7 % less).
+    ratio = drop / darcy_drop(sim)
+    if face == "harmonic":
+        assert ratio == pytest.approx(1.0, abs=0.03)
+    else:
+        assert 0.9 < ratio < 1.0
 
 
 def test_fluidised_bed_pressure_drop_carries_its_weight():
