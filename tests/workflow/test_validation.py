@@ -171,3 +171,19 @@ def test_blocked_points_are_left_out_of_a_curve_and_noted(tmp_path):
     row = validation.compare(statement(str(path), "trend", key="gas.superficial_velocity",
                                        expected="decreasing", unit="-"), {})
     assert row["ours"] == "decreasing" and row["within"] == "yes"
+
+
+def test_verdict_changes_lists_changed_added_and_dropped_statements(tmp_path):
+    import validation_changes
+
+    old = pd.DataFrame({"id": ["A", "B", "C"], "ours": [1.0, 2.0, "plug"], "within": ["yes", "no", "no"]})
+    new = pd.DataFrame({"id": ["A", "B", "D"], "ours": [1.1, 2.5, 0.4], "within": ["yes", "yes", "no"]})
+    rows = validation_changes.verdict_changes(old, new).set_index("id")
+    assert sorted(rows.index) == ["B", "C", "D"]  # A kept its verdict
+    assert (rows.loc["B", "within_old"], rows.loc["B", "within_new"]) == ("no", "yes")
+    assert rows.loc["C", "within_new"] == "—" and rows.loc["D", "within_old"] == "—"
+    old.to_csv(tmp_path / "old.csv", index=False)
+    new.to_csv(tmp_path / "new.csv", index=False)
+    text = validation_changes.markdown(pd.read_csv(tmp_path / "old.csv"), pd.read_csv(tmp_path / "new.csv"))
+    assert text.startswith("old: 1 of 3 within; new: 2 of 3 within; 3 verdicts changed")
+    assert "| B | 2 | 2.5 | no | yes |" in text and "| C | plug | — | no | — |" in text
