@@ -125,10 +125,11 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("feed.entry_velocity", 0.04, "m s-1",
         "Speed u_in of the feed piston that pushes grains into the tube; the feed is refused when "
         "m_dot cannot be packed at this speed.", low=0.0, low_open=True, high=100.0),
-    Key("feed.max_overlap", 0.05, "1",
+    Key("feed.max_overlap", 0.15, "1",
         "Largest overlap (fraction of d) the feed piston may press into a grain ahead. The piston "
         "never pauses (the papers' enforced mass flow); pressing deeper means the tube cannot take "
-        "the feed, and the run ends with stop_reason blocked (below the run guard of 0.2 d).",
+        "the feed, and the run ends with stop_reason blocked. The default is the largest value "
+        "below the run guard of 0.2 d (docs/decisions/0019-feed-block-overlap.md).",
         low=0.0, low_open=True, high=0.15),
     Key("gas.enabled", True, "", "Solve the gas pressure field and apply drag (false: pure grains).",
         kind=bool),

@@ -380,3 +380,18 @@ def test_a_blocked_tube_is_a_result_reported_as_blocked(tmp_path):
         assert float(ds.time[-1]) <= ds.attrs["blocked_time"]
         # the piston was pushing the column up when it blocked
         assert ds.piston_force.values[-5:].mean() > 0
+
+
+def test_the_block_threshold_does_not_change_a_run_that_does_not_block(tmp_path):
+    # feed.max_overlap only decides when a run ends as blocked: the piston never pauses, so a
+    # run that never passes either threshold is bit-identical under both
+    files = []
+    for overlap in (0.05, 0.15):
+        case = Case().with_overrides(["tube.inclination_deg=90", "tube.length=0.03", "gas.nodes_x=9",
+                                      f"feed.max_overlap={overlap}", "run.duration=0.3"])
+        files.append(run_case(case, tmp_path / f"overlap{overlap}.nc"))
+    with xr.open_dataset(files[0]) as a, xr.open_dataset(files[1]) as b:
+        assert a.attrs["stop_reason"] == b.attrs["stop_reason"] == "duration"
+        assert float(a.n_particles[-1]) > 50  # the feed ran
+        np.testing.assert_array_equal(a.final_position.values, b.final_position.values)
+        np.testing.assert_array_equal(a.pressure_drop.values, b.pressure_drop.values)
