@@ -55,6 +55,32 @@ def test_a_reading_outside_the_tolerance_is_not_within():
     assert df["within"].tolist() == ["no", "yes"]
 
 
+def test_grain_velocity_and_travel_speed_are_told_apart():
+    # the papers' grain velocity in a slug (0.29 m/s) and its travel speed (0.42 m/s) are two
+    # statements: each must read its own column of the curve table
+    table = readings_table([3300.0, 4700.0], ["slug", "slug"])
+    table["max_velocity"], table["travel_speed"] = [0.35, 0.30], [0.47, 0.43]
+    statements = [{"id": "U", "statement": "u", "measure": "slug_stat", "value": 0.29, "unit": "m/s",
+                   "tolerance": 0.03},
+                  {"id": "T", "statement": "t", "measure": "slug_stat", "value": 0.42, "unit": "m/s",
+                   "tolerance": 0.04}]
+    compare = [{"statement": "U", "sweep": "s", "measure": "max_velocity"},
+               {"statement": "T", "sweep": "s", "measure": "travel_speed"}]
+    df = identification.table(statements, {"s": table}, compare, READINGS).set_index(["id", "reading"])
+    assert df.loc["U", "ours"].tolist() == pytest.approx([0.35, 0.30])
+    assert df.loc["U", "within"].tolist() == ["no", "yes"]
+    assert df.loc["T", "ours"].tolist() == pytest.approx([0.47, 0.43])
+    assert df.loc["T", "within"].tolist() == ["no", "yes"]
+
+
+def test_a_blocked_reading_is_not_within():
+    # 47 hPa/m would be within 39 +- 7.8, but the tube did not deliver its feed
+    tables = {"s": readings_table([3300.0, 4700.0], ["plug", "blocked"])}
+    df = identification.table(STATEMENTS, tables, [{"statement": "DP", "sweep": "s"}], READINGS)
+    assert df["within"].tolist() == ["yes", "no (blocked)"]
+    assert df["ours"].tolist() == pytest.approx([33.0, 47.0])  # the value is still shown
+
+
 def test_argmax_is_taken_within_each_reading():
     friction = [0.1, 0.3]
     tables = {"f": readings_table([[900.0, 700.0], [700.0, 900.0]], ["slug", "slug"], friction)}

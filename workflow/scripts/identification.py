@@ -5,7 +5,9 @@ One row per (statement, reading): the paper's value and tolerance (resources/pap
 never adjusted), ours +- standard error from the sweep's curve table, ratio and verdict with the
 validation rule's test (ours +- 2 standard errors overlapping the paper's interval). Measures:
 pressure_drop, n_particles (steady means), regime (the case's label against `expected`),
-slug_velocity (the curve summary's slug velocity, no error bar) and argmax (the value of the
+max_velocity (the papers' mean maximal granular velocity in a slug, per passage) and
+travel_speed (the speed at which slugs and plugs travel; both without an error bar in the curve
+table) and argmax (the value of the
 statement's `x` with the largest pressure drop within the reading's points).
 
 Standalone:
@@ -29,7 +31,8 @@ from validation import TO_UNIT, paper_interval, paper_text
 NAN = float("nan")
 COLUMN = {"pressure_drop": ("pressure_drop", "pressure_drop_sem"),
           "n_particles": ("n_particles", "n_particles_sem"),
-          "slug_velocity": ("slug_velocity", None)}
+          "max_velocity": ("max_velocity", None),
+          "travel_speed": ("travel_speed", None)}
 
 
 def reading_label(row: pd.Series, readings: list[str]) -> str:
@@ -68,9 +71,11 @@ def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str
             error = (float(group[sem].iloc[0]) * TO_UNIT.get(st.get("unit", "1"), 1.0)
                      if sem else NAN)
         mid = paper_interval(st)[2]
+        within = verdict(value, error, st) if math.isfinite(value) else "not available"
+        if measure != "argmax" and "regime" in group and group["regime"].iloc[0] == "blocked":
+            within = "no (blocked)"  # a tube that did not deliver its feed meets no conveying number
         out.append({"reading": label, "ours": value, "ours_error": error,
-                    "ratio": value / mid if mid else NAN,
-                    "within": verdict(value, error, st) if math.isfinite(value) else "not available"})
+                    "ratio": value / mid if mid else NAN, "within": within})
     return out
 
 
@@ -125,14 +130,16 @@ def figure(df: pd.DataFrame, path) -> None:
     fig, ax = plt.subplots(figsize=(2.2 + 1.6 * len(readings), 1.2 + 0.45 * len(ids)))
     for _, r in df.iterrows():
         i, j = ids.index(r["id"]), readings.index(r["reading"])
-        grid[i, j] = {"yes": 1.0, "no": 0.0}.get(r["within"], np.nan)
+        grid[i, j] = {"yes": 1.0, "no": 0.0, "no (blocked)": 0.0}.get(r["within"], np.nan)
         text = r["ours"] if isinstance(r["ours"], str) else (
             f"{r['ratio']:.2f}" if math.isfinite(r["ratio"]) else f"{r['ours']:.3g}")
+        if r["within"] == "no (blocked)":
+            text += " (blocked)"
         ax.text(j, i, text, ha="center", va="center", fontsize=8)
     ax.imshow(grid, cmap="RdYlGn", vmin=-0.3, vmax=1.3, aspect="auto")
     ax.set_xticks(range(len(readings)), [r.replace(", ", "\n") for r in readings], fontsize=7)
     ax.set_yticks(range(len(ids)), ids, fontsize=8)
-    ax.set_title("Each reading against the papers: ours / paper (regime), green = within tolerance",
+    ax.set_title("Each reading against the papers:\nours / paper (or our regime), green = within tolerance",
                  fontsize=9)
     fig.tight_layout()
     fig.savefig(ensure_parent(path), dpi=120)
