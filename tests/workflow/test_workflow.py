@@ -346,7 +346,7 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     assert ident.returncode == 0, ident.stderr[-5000:]
     table = pd.read_csv(work / "results/identification/identification.csv", comment="#")
     assert table["reading"].nunique() == 2 and len(table) == 2 * 5
-    assert set(table["within"]) <= {"yes", "no", "not available"}
+    assert set(table["within"]) <= {"yes", "no", "no (blocked)", "not available"}
     assert imread(work / "results/identification/identification.png").ndim == 3
     report = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
     assert report.returncode == 0, report.stderr[-3000:]
