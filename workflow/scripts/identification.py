@@ -5,10 +5,10 @@ One row per (statement, reading): the paper's value and tolerance (resources/pap
 never adjusted), ours +- standard error from the sweep's curve table, ratio and verdict with the
 validation rule's test (ours +- 2 standard errors overlapping the paper's interval). Measures:
 pressure_drop, n_particles (steady means), regime (the case's label against `expected`),
-max_velocity (the papers' mean maximal granular velocity in a slug, per passage) and
-travel_speed (the speed at which slugs and plugs travel; both without an error bar in the curve
-table) and argmax (the value of the
-statement's `x` with the largest pressure drop within the reading's points).
+max_velocity (the papers' mean maximal granular velocity in a slug, per passage), travel_speed
+(the speed at which slugs and plugs travel; both without an error bar in the curve table) and
+argmax (the value of the statement's `x` with the largest pressure drop within the reading's
+points). A blocked case is "no (blocked)" whatever its numbers.
 
 Standalone:
     python workflow/scripts/identification.py --input statements=resources/paper_statements.yaml \
