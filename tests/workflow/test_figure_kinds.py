@@ -40,3 +40,16 @@ def test_every_figure_of_the_configs_has_a_registered_kind():
         for fig, spec in (yaml.safe_load(path.read_text()).get("figures") or {}).items():
             assert spec["kind"] in KINDS, f"{path.name}: {fig}"
             assert KINDS[spec["kind"]].draws in spec, f"{path.name}: {fig}"
+
+
+def test_curve_caption_line_of_a_blocked_point_has_no_nan_error_and_no_repeated_regime():
+    import pandas as pd
+    table = pd.DataFrame([
+        {"gas.superficial_velocity": 0.15, "pressure_drop": 5090.0, "pressure_drop_sem": float("nan"),
+         "regime": "blocked", "stop_reason": "blocked", "delivery": 0.44, "t_start": 9.66, "t_end": 11.49},
+        {"gas.superficial_velocity": 1.0, "pressure_drop": 867.0, "pressure_drop_sem": 32.0,
+         "regime": "slug", "stop_reason": "steady", "delivery": 0.99, "t_start": 1.0, "t_end": 30.0}])
+    blocked, slug = figure._curve_facts(table, "gas.superficial_velocity")
+    assert "nan" not in blocked and "no standard error (the window covers too few correlation times)" in blocked
+    assert blocked.count("blocked") == 1 and "delivers 44% of its feed" in blocked
+    assert "8.67 +- 0.32 hPa/m (slug, delivers 99% of its feed, steady" in slug

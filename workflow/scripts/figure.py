@@ -168,10 +168,14 @@ def _curve_facts(table, x, group=None) -> list[str]:
                   and "t_end" in row else "")
         delivered = (f"delivers {row['delivery']:.0%} of its feed" if "delivery" in row
                      and np.isfinite(float(row["delivery"])) else "")
-        detail = ", ".join(str(v) for v in (row["regime"], delivered, row.get("stop_reason", ""),
-                                            window, start) if isinstance(v, str) and v)
-        facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g} +- "
-                     f"{row['pressure_drop_sem'] / HPA:.2g} hPa/m ({detail})")
+        stop = row.get("stop_reason", "")
+        detail = ", ".join(str(v) for v in (row["regime"], delivered,
+                                            stop if stop != row["regime"] else "", window, start)
+                           if isinstance(v, str) and v)
+        sem = float(row["pressure_drop_sem"])
+        error = (f" +- {sem / HPA:.2g} hPa/m" if np.isfinite(sem)
+                 else " hPa/m, no standard error (the window covers too few correlation times)")
+        facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g}{error} ({detail})")
     return facts
 
 
