@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 
 from _helpers import (ensure_parent, note, read_table, save_figure, setup_logging,
                       snakemake_or_cli)
+from analysis.timeseries import NOT_CONVERGED
 from figure_kinds import KINDS as FIGURE_KINDS
 
 HPA = 100.0
@@ -60,7 +61,7 @@ def _window_facts(ds, t_range) -> str:
     both = grains.converged and dp.converged
     text = (f"shown: t = {t_range[0]:.2f}-{t_range[1]:.2f} s; on average {_value(grains, '.0f', both)} "
             f"grains in the tube and a pressure drop of {_value(dp, '.3g', both)} hPa/m over this window")
-    text = text if both else text + " (no standard errors: it covers too few correlation times)"
+    text = text if both else text + f" (no standard errors: {NOT_CONVERGED})"
     return f"{text}; {_start_text(ds)}"
 
 
@@ -174,7 +175,7 @@ def _curve_facts(table, x, group=None) -> list[str]:
                            if isinstance(v, str) and v)
         sem = float(row["pressure_drop_sem"])
         error = (f" +- {sem / HPA:.2g} hPa/m" if np.isfinite(sem)
-                 else " hPa/m, no standard error (the window covers too few correlation times)")
+                 else f" hPa/m, no standard error ({NOT_CONVERGED})")
         facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g}{error} ({detail})")
     return facts
 
