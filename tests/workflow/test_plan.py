@@ -95,6 +95,37 @@ def test_cases_that_differ_in_a_key_or_their_start_are_not_merged():
     assert plan.canonical[("h_warm", "base")] == ("h_warm", "base")  # same keys as h_default, warm
 
 
+def test_a_one_at_a_time_design_varies_each_parameter_alone_from_the_first_values():
+    spec = {"base": H, "design": "one_at_a_time",
+            "parameters": {"gas.scheme": ["unsplit", {"gas.scheme": "split", "gas.theta": 0.5}],
+                           "particles.tangential_damping": [0.02, 0.005, 0.01]}}
+    points = Plan(config({"id_h": spec})).points["id_h"]
+    # 1 baseline + (2 - 1) + (3 - 1) points; a full factorial would have 6
+    assert len(points) == 4
+    assert {(p["gas.scheme"], p["particles.tangential_damping"]) for p in points.values()} == {
+        ("unsplit", 0.02), ("split", 0.02), ("unsplit", 0.005), ("unsplit", 0.01)}
+    split = next(p for p in points.values() if p["gas.scheme"] == "split")
+    assert split["gas.theta"] == 0.5
+
+
+def test_crossed_parameters_take_every_value_under_each_screened_reading():
+    spec = {"base": H, "design": "one_at_a_time", "crossed": ["gas.superficial_velocity"],
+            "parameters": {"gas.superficial_velocity": [0.75, 4.0],
+                           "gas.face_permeability": ["arithmetic", "harmonic"],
+                           "particles.stiffness": [2000.0, 8000.0]}}
+    points = Plan(config({"id_v_vs": spec})).points["id_v_vs"]
+    combos = {(p["gas.superficial_velocity"], p["gas.face_permeability"], p["particles.stiffness"])
+              for p in points.values()}
+    assert combos == {(v, face, k) for v in (0.75, 4.0) for face, k in
+                      [("arithmetic", 2000.0), ("harmonic", 2000.0), ("arithmetic", 8000.0)]}
+
+
+def test_an_unknown_design_is_refused_naming_the_sweep():
+    spec = {**curve([1.0, 2.0]), "design": "latin"}
+    with pytest.raises(Exception, match="sweep 'h_vs'.*design 'latin'"):
+        Plan(config({"h_vs": spec}))
+
+
 # ---- warm starts ---------------------------------------------------------------------------------
 
 def test_warm_start_names_the_source_case_of_every_other_point():
@@ -161,6 +192,16 @@ def test_an_unknown_case_key_is_refused_naming_the_sweep_and_point():
     sweeps = {"h_vs": curve([1.5], overrides={"gas.viscosty": 1e-5})}
     with pytest.raises(PlanError, match=r"sweep 'h_vs', point 'gas.superficial_velocity~1.5': .*gas.viscosty"):
         Plan(config(sweeps))
+
+
+def test_the_identification_may_compare_training_statements_only():
+    statements = [{"id": "DP", "role": "training", "measure": "pressure_drop", "sweep": "id_h"},
+                  {"id": "RATE", "measure": "slug_rate", "sweep": "id_h"}]
+    sweeps = {"id_h": curve([1.0, 2.0])}
+    Plan(config(sweeps, identification={"compare": [{"statement": "DP", "sweep": "id_h"}]}), statements)
+    with pytest.raises(PlanError, match="'RATE', a test statement; only statements with role: training"):
+        Plan(config(sweeps, identification={"compare": [{"statement": "RATE", "sweep": "id_h"}]}),
+             statements)
 
 
 def test_a_value_out_of_range_is_refused():

@@ -397,8 +397,10 @@ class Plan:
     # -- model identification --
 
     def _check_identification(self, statements_source: str) -> None:
-        """Every comparison names a declared sweep and a known statement."""
-        ids = {st["id"] for st in self.statements}
+        """Every comparison names a declared sweep and a known training statement (a reading is
+        never chosen on a test statement)."""
+        roles = {st["id"]: st.get("role", "test") for st in self.statements}
+        ids = set(roles)
         for item in self.identification.get("compare") or []:
             if item["sweep"] not in self.points:
                 raise PlanError(f"config: identification compares statement {item['statement']} on "
@@ -406,6 +408,10 @@ class Plan:
             if item["statement"] not in ids:
                 raise PlanError(f"config: identification names statement {item['statement']!r}, "
                                 f"which is not in {statements_source}")
+            if roles[item["statement"]] != "training":
+                raise PlanError(f"config: identification compares statement {item['statement']!r}, "
+                                f"a test statement; only statements with role: training in "
+                                f"{statements_source} may choose a reading")
 
     def identification_tables(self) -> list[str]:
         """The curve tables of the sweeps the identification compares."""

@@ -2,7 +2,9 @@
 
 A sweep (config `sweeps.<name>`) names a base case YAML, fixed overrides and parameters with value
 lists; every combination of the parameter values is one point (a full factorial, like Snakemake's
-Paramspace). A value may also be a mapping of several keys that move together (its own key gives the
+Paramspace), or with `design: one_at_a_time` the point of every parameter's first value plus one
+point per other value with the rest at their first (a screening from a baseline), crossed in full
+with the parameters listed under `crossed`. A value may also be a mapping of several keys that move together (its own key gives the
 point name), and `same_as` ties a key to a parameter (wall.friction follows particles.friction).
 
 A point is named by its parameters, `key~value` joined by `_`, e.g.
@@ -72,7 +74,7 @@ def expand(sweep: str, spec: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
             raise SweepError(f"sweep {sweep!r}: same_as {target!r}: {source!r} is not one of its "
                              f"parameters {names}")
     points: dict[str, dict[str, Any]] = {}
-    for combo in itertools.product(*[_levels(n, parameters[n], sweep) for n in names]):
+    for combo in _combinations(sweep, spec, names, [_levels(n, parameters[n], sweep) for n in names]):
         values: dict[str, Any] = {}
         for level in combo:
             values.update(level)
@@ -84,6 +86,33 @@ def expand(sweep: str, spec: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
                              "make the parameter values distinct")
         points[label] = values
     return points
+
+
+def _combinations(sweep: str, spec: Mapping[str, Any], names: list[str],
+                  levels: list[list[dict[str, Any]]]) -> list[tuple]:
+    """Level combinations of the sweep's design: every one (full), or the baseline of first levels
+    and each other level alone (one_at_a_time), crossed in full with the `crossed` parameters."""
+    design, crossed = spec.get("design", "full"), list(spec.get("crossed") or [])
+    if design not in ("full", "one_at_a_time"):
+        raise SweepError(f"sweep {sweep!r}: design {design!r} is not one of full, one_at_a_time")
+    unknown = [name for name in crossed if name not in names]
+    if unknown or (crossed and design == "full"):
+        raise SweepError(f"sweep {sweep!r}: crossed {crossed} must name parameters {names} of a "
+                         "one_at_a_time design")
+    if design == "full":
+        return list(itertools.product(*levels))
+    screened = [i for i, name in enumerate(names) if name not in crossed]
+    base = [levels[i][0] for i in screened]
+    screen = [tuple(base)] + [tuple(base[:k] + [other] + base[k + 1:])
+                              for k, i in enumerate(screened) for other in levels[i][1:]]
+    combos = []
+    for fixed in itertools.product(*[levels[i] for i, name in enumerate(names) if name in crossed]):
+        for row in screen:
+            parts, fixed_iter, row_iter = [], iter(fixed), iter(row)
+            for name in names:
+                parts.append(next(fixed_iter) if name in crossed else next(row_iter))
+            combos.append(tuple(parts))
+    return combos
 
 
 def _equal(a: Any, b: Any) -> bool:
