@@ -187,3 +187,51 @@ def test_verdict_changes_lists_changed_added_and_dropped_statements(tmp_path):
     text = validation_changes.markdown(pd.read_csv(tmp_path / "old.csv"), pd.read_csv(tmp_path / "new.csv"))
     assert text.startswith("old: 1 of 3 within; new: 2 of 3 within; 3 verdicts changed")
     assert "| B | 2 | 2.5 | no | yes |" in text and "| C | plug | — | no | — |" in text
+
+
+def _row(sid, role, measure, ours, err, kind="sem", **spec):
+    """A validation row as _compare writes it, for the count and the re-judging."""
+    st = {"id": sid, "paper": "H", "source": "s", "statement": "s", "measure": measure, **spec}
+    if role == "training":
+        st["role"] = role
+    within = validation.judge(st, ours, err, kind)
+    return st, {"id": sid, "role": validation.statement_role(st), "kind": validation.statement_kind(st),
+                "paper": "H", "source": "s", "statement": "s", "paper_value": "", "unit": "1",
+                "ratio": float("nan"), "ours": ours, "ours_error": err, "error_kind": kind, "within": within, "note": ""}
+
+
+def test_the_headline_counts_test_statements_apart_from_training_and_by_kind():
+    rows = [_row("A", "training", "pressure_drop", 10.0, 0.1, value=10, tolerance=0.5)[1],
+            _row("B", "test", "pressure_drop", 12.0, 0.1, value=10, tolerance=0.5)[1],
+            _row("C", "test", "n_particles", 3190.0, 10.0, value=3200, tolerance=50)[1],
+            _row("D", "test", "trend", "increasing", float("nan"), "category", expected="increasing")[1],
+            _row("E", "test", "regime", "slug", float("nan"), "category", expected="plug")[1]]
+    text = validation.markdown(pd.DataFrame(rows), {})
+    assert ("**Test statements (predictions): 2 of 4 within (quantitative 1 of 2, trend 1 of 1, "
+            "regime 0 of 1).**") in text
+    assert "Training statements (the identification may choose a reading on them): 1 of 1 within" in text
+
+
+def test_rejudging_applies_new_tolerances_to_the_measured_values():
+    old_st, old_row = _row("DP", "training", "pressure_drop", 8.3, 0.3, value=10, tolerance=2)
+    assert old_row["within"] == "yes"  # 8.3 + 2 * 0.3 = 8.9 reaches 10 - 2
+    new_st = {**old_st, "tolerance": 0.5}
+    missing = {"id": "NEW", "paper": "V", "source": "s", "statement": "s", "measure": "pressure_drop",
+               "value": 1, "tolerance": 0.1}
+    table = validation.rejudge(pd.DataFrame([old_row]), [new_st, missing]).set_index("id")
+    assert table.loc["DP", "within"] == "no"  # 8.9 < 9.5
+    assert table.loc["DP", "role"] == "training"
+    assert table.loc["NEW", "within"] == "not available"
+
+
+def test_every_statement_has_a_known_role_and_kind_and_trainings_are_the_identifications():
+    import yaml
+
+    statements = yaml.safe_load((ROOT / "resources" / "paper_statements.yaml").read_text())
+    assert {validation.statement_role(st) for st in statements} == {"training", "test"}
+    assert {validation.statement_kind(st) for st in statements} == set(validation.KINDS)
+    training = {st["id"] for st in statements if validation.statement_role(st) == "training"}
+    compared = {item["statement"] for item in
+                yaml.safe_load((ROOT / "config" / "identification.yaml").read_text())
+                ["identification"]["compare"]}
+    assert compared == training

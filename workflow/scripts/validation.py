@@ -6,8 +6,16 @@ spacing for transitions and maxima) overlaps the statement's interval (value +- 
 range, or value / factor .. value * factor). Tolerances come from the statements file with their
 justification and are never adjusted here.
 
+Each statement has a role (training: it may choose a reading; test: a prediction) and a kind
+(quantitative, trend, regime); the headline counts the test statements, with the training count
+beside it.
+
 Standalone (params.statements as prepared by workflow/rules/validation.smk):
     snakemake -n validation   # shows the inputs; then run the rule, it is cheap
+Re-judge a committed table's measured values with the current statements file (new tolerances,
+roles and kinds; statements no longer in the file are dropped, new ones are not available):
+    python workflow/scripts/validation.py --rejudge docs/reference/paper/validation.csv \
+        resources/paper_statements.yaml /tmp/validation.csv      # writes .csv and .md
 """
 
 import math
@@ -228,6 +236,31 @@ MEASURES = {f.__name__: f for f in (pressure_drop, n_particles, regime, ratio, s
 
 # ---- comparison -------------------------------------------------------------------------------
 
+TREND_MEASURES = {"trend", "monotonic", "fit_deviation"}
+KINDS = ("quantitative", "trend", "regime")
+
+
+def statement_kind(st) -> str:
+    """quantitative (a number against an interval), trend (sign or shape of a curve) or regime."""
+    if st["measure"] == "regime":
+        return "regime"
+    return "trend" if st["measure"] in TREND_MEASURES else "quantitative"
+
+
+def statement_role(st) -> str:
+    """training (may be looked at to choose a reading) or test (a prediction)."""
+    return st.get("role", "test")
+
+
+def judge(st, value, err, error_kind) -> str:
+    """'yes' when ours (+- 2 standard errors, or +- its half-width) meets the statement, else 'no'."""
+    if error_kind == "category":
+        return "yes" if value == st["expected"] else "no"
+    lo, hi, _ = paper_interval(st)
+    reach = 0.0 if not math.isfinite(err) else (2 * err if error_kind == "sem" else err)
+    return "yes" if (value + reach >= lo and value - reach <= hi) else "no"
+
+
 def paper_interval(st):
     if "range" in st:
         lo, hi = st["range"]
@@ -292,7 +325,8 @@ def _blocked(st) -> str:
 
 
 def _compare(st, ctx) -> dict:
-    row = {"id": st["id"], "paper": st["paper"], "source": st["source"],
+    row = {"id": st["id"], "role": statement_role(st), "kind": statement_kind(st),
+           "paper": st["paper"], "source": st["source"],
            "statement": st["statement"], "paper_value": paper_text(st), "unit": st.get("unit", ""),
            "justification": " ".join(str(st.get("justification", "")).split()),
            "cases": ", ".join(c for c in st.get("case_names") or [] if c) or st.get("sweep", ""),
@@ -310,32 +344,42 @@ def _compare(st, ctx) -> dict:
         return row
     row["note"] = note[0] if note else ""
     if kind == "category":
-        row.update(ours=value, error_kind="category",
-                   within="yes" if value == st["expected"] else "no")
+        row.update(ours=value, error_kind="category", within=judge(st, value, NAN, kind))
         return row
     factor = TO_UNIT.get(st.get("unit", "1"), 1.0)
     value, err = float(value) * factor, float(err) * factor
-    lo, hi, mid = paper_interval(st)
-    reach = 0.0 if not math.isfinite(err) else (2 * err if kind == "sem" else err)
+    mid = paper_interval(st)[2]
     if not math.isfinite(value):
         row.update(within="not available", note="not measurable (NaN)")
         return row
     row.update(ours=value, ours_error=err, error_kind=kind,
                ratio=value / mid if mid and kind != "fit" else NAN,
-               within="yes" if (value + reach >= lo and value - reach <= hi) else "no")
+               within=judge(st, value, err, kind))
     if not math.isfinite(err) and kind == "sem":
         row["note"] = "; ".join(filter(None, [row["note"], "no standard error (too few samples)"]))
     return row
 
 
+def count_line(table: pd.DataFrame, role: str) -> str:
+    """'a of n within (quantitative x of y, trend ..., regime ...)' for the statements of a role."""
+    rows = table[table["role"] == role]
+    within = rows["within"] == "yes"
+    parts = [f"{k} {int(within[rows['kind'] == k].sum())} of {int((rows['kind'] == k).sum())}"
+             for k in KINDS if (rows["kind"] == k).any()]
+    missing = int((rows["within"] == "not available").sum())
+    text = f"{int(within.sum())} of {len(rows)} within ({', '.join(parts)})"
+    return text + (f", {missing} not available" if missing else "")
+
+
 def markdown(table: pd.DataFrame, ctx) -> str:
-    counts = table["within"].value_counts()
     lines = ["# Validation against the papers", "",
-             f"{len(table)} statements: {counts.get('yes', 0)} within tolerance, "
-             f"{counts.get('no', 0)} outside, {counts.get('not available', 0)} not available.", "",
+             f"**Test statements (predictions): {count_line(table, 'test')}.** Training statements "
+             f"(the identification may choose a reading on them): {count_line(table, 'training')}.",
+             "",
              "Ours is within when ours +- 2 standard errors (+- half the sweep spacing for "
-             "transitions and maxima) overlaps the paper's value +- tolerance (or range). "
-             "Tolerances and their justification: resources/paper_statements.yaml.", ""]
+             "transitions and maxima) overlaps the paper's value +- tolerance (or range), the "
+             "tolerance being the paper's own precision. Tolerances, roles and their "
+             "justification: resources/paper_statements.yaml.", ""]
     if ctx.get("partial"):
         lines += ["**Partial validation** (config validation.partial): statements whose cases or "
                   "curves were not produced yet are marked not available.", ""]
@@ -344,8 +388,8 @@ def markdown(table: pd.DataFrame, ctx) -> str:
     if physical:
         lines += [f"**Configuration overrides applied to every case:** `{physical}` "
                   "(a reduced run: the comparison is not meaningful).", ""]
-    lines += ["| id | source | statement | paper | ours | ratio | within | note |",
-              "|---|---|---|---|---|---|---|---|"]
+    lines += ["| id | role | kind | source | statement | paper | ours | ratio | within | note |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in table.itertuples():
         if r.error_kind == "category":
             ours = str(r.ours)
@@ -355,7 +399,8 @@ def markdown(table: pd.DataFrame, ctx) -> str:
         else:
             ours = "-"
         ratio_text = f"{r.ratio:.2f}" if isinstance(r.ratio, float) and math.isfinite(r.ratio) else "-"
-        lines.append(f"| {r.id} | {r.paper} {r.source} | {r.statement} | {r.paper_value} | {ours} | "
+        lines.append(f"| {r.id} | {r.role} | {r.kind} | {r.paper} {r.source} | {r.statement} | "
+                     f"{r.paper_value} | {ours} | "
                      f"{ratio_text} | {r.within} | {r.note} |")
     return "\n".join(lines) + "\n"
 
@@ -371,5 +416,50 @@ def main(smk) -> None:
     log.info("\n%s", table[["id", "paper_value", "ours", "ours_error", "ratio", "within", "note"]])
 
 
+def rejudge(old: pd.DataFrame, statements: list[dict]) -> pd.DataFrame:
+    """A validation table's measured values (ours, ours_error, error_kind, note) judged again with
+    `statements`: their intervals, roles and kinds. A statement the old table lacks is not
+    available."""
+    by_id = old.set_index("id")
+    rows = []
+    for st in statements:
+        row = {"id": st["id"], "role": statement_role(st), "kind": statement_kind(st),
+               "paper": st["paper"], "source": st["source"], "statement": st["statement"],
+               "paper_value": paper_text(st), "unit": st.get("unit", ""),
+               "justification": " ".join(str(st.get("justification", "")).split()), "cases": "",
+               "ours": NAN, "ours_error": NAN, "error_kind": "", "ratio": NAN,
+               "within": "not available", "note": "not in the re-judged table",
+               "figure": " ".join(_figures(st))}
+        if st["id"] in by_id.index:
+            o = by_id.loc[st["id"]]
+            row.update(note="" if pd.isna(o["note"]) else str(o["note"]), within=o["within"],
+                       cases="" if pd.isna(o.get("cases")) else str(o.get("cases")))
+            if o["within"] != "not available":
+                kind = o["error_kind"]
+                value = o["ours"] if kind == "category" else float(o["ours"])
+                err = float(o["ours_error"])  # the table holds ours in the statement's unit
+                row.update(ours=value, ours_error=err, error_kind=kind, within=judge(st, value, err, kind))
+                if kind not in ("category", "fit") and (mid := paper_interval(st)[2]):
+                    row["ratio"] = value / mid
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def _rejudge_cli(argv: list[str]) -> None:
+    """OLD.csv STATEMENTS.yaml OUT.csv: writes OUT.csv and OUT.md, prints the headline."""
+    import yaml
+    from pathlib import Path
+    table_path, statements_path, out = argv
+    table = rejudge(read_table(table_path), yaml.safe_load(open(statements_path)))
+    table.to_csv(ensure_parent(out), index=False)
+    text = markdown(table, {})
+    Path(out).with_suffix(".md").write_text(text)
+    print(text.split("\n")[2])
+
+
 if __name__ == "__main__":
-    main(snakemake_or_cli(globals(), "validation"))
+    import sys
+    if sys.argv[1:2] == ["--rejudge"]:
+        _rejudge_cli(sys.argv[2:])
+    else:
+        main(snakemake_or_cli(globals(), "validation"))
