@@ -280,10 +280,11 @@ def slug_in_snapshots(ds: xr.Dataset, slugs: pd.DataFrame, prefer=()) -> tuple[i
         return None
     dt = float(slugs.attrs.get("dt", np.median(np.diff(np.unique(slugs["time"])))
                                if slugs["time"].nunique() > 1 else 0.01))
-    k = np.clip(np.searchsorted(times, slugs["time"].to_numpy()), 1, times.size - 1)
-    k = np.where(np.abs(times[k - 1] - slugs["time"].to_numpy()) <= np.abs(times[k] - slugs["time"].to_numpy()),
-                 k - 1, k)
-    at_shot = np.abs(times[k] - slugs["time"].to_numpy()) <= dt / 2 + 1e-9
+    t = slugs["time"].to_numpy()
+    after = np.clip(np.searchsorted(times, t), 0, times.size - 1)  # nearest snapshot: this or the one before
+    before = np.clip(after - 1, 0, None)
+    k = np.where(np.abs(times[before] - t) <= np.abs(times[after] - t), before, after)
+    at_shot = np.abs(times[k] - t) <= dt / 2 + 1e-9
     lo_col = "x_start_total" if "x_start_total" in slugs else "x_start"
     hi_col = "x_end_total" if "x_end_total" in slugs else "x_end"
     count = np.asarray(ds["snapshot_count"].values, dtype=np.int64)

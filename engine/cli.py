@@ -94,7 +94,8 @@ def _export(args: argparse.Namespace) -> int:
     except ExportError as err:
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
-    print(f"wrote {done.folder}/: grains.pvd ({done.grain_files} snapshots), slices.pvd "
+    empty = f"; {done.empty_snapshots} without grains, not written" if done.empty_snapshots else ""
+    print(f"wrote {done.folder}/: grains.pvd ({done.grain_files} snapshots{empty}), slices.pvd "
           f"({done.slice_files} frames), {done.size / 1e6:.1f} MB")
     return 0
 

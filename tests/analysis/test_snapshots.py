@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis import (averaged_radial_profile, cross_section, cross_section_series, detect,
@@ -143,3 +144,14 @@ def test_the_slug_to_picture_lies_in_a_snapshot(default_case, default_slugs):
     early = default_slugs[default_slugs["time"] < 5.0]
     early.attrs.update(default_slugs.attrs)
     assert slug_in_snapshots(default_case, early) is None
+
+
+def test_a_single_snapshot_pictures_the_slug_in_it():
+    # one snapshot used to be matched to index -1, whose grains are the empty range [n:0]
+    rng = np.random.default_rng(0)
+    pos, vel = S.packed_grains(rng, 50, (0.04, 0.06))
+    ds = S.build([], duration=1.0, snapshots=[(0.5, pos, vel)])
+    slugs = pd.DataFrame([{"slug_id": 7, "time": 0.5, "x_center": 0.05, "x_start_total": 0.03,
+                           "x_end_total": 0.07, "n_particles": 50}])
+    k, row = slug_in_snapshots(ds, slugs)
+    assert k == 0 and row["slug_id"] == 7

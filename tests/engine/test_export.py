@@ -42,8 +42,8 @@ def ds(case_file):
 
 
 def read_vtk(path: Path) -> dict:
-    """Arrays of a VTK XML file (appended raw with UInt64 headers, or empty ascii), by Name, with
-    the Piece's NumberOfPoints; independent of the writer."""
+    """Arrays of a VTK XML file (appended raw with UInt64 headers, or ascii), by Name, with the
+    Piece's NumberOfPoints; independent of the writer."""
     raw = path.read_bytes()
     start = raw.find(b"<AppendedData")
     head = raw[:start if start >= 0 else len(raw)].decode()
@@ -57,8 +57,9 @@ def read_vtk(path: Path) -> dict:
             size = int(np.frombuffer(binary[offset:offset + 8], dtype=np.uint64)[0])
             values = np.frombuffer(binary[offset + 8:offset + 8 + size], dtype=VTK_TYPES[attr["type"]])
         else:
-            assert attr["format"] == "ascii" and 'NumberOfPoints="0"' in head
-            values = np.zeros(0, dtype=VTK_TYPES[attr["type"]])
+            assert attr["format"] == "ascii"
+            text = head[head.index(tag) + len(tag):].split("</DataArray>")[0]
+            values = np.array(text.split(), dtype=VTK_TYPES[attr["type"]])
         arrays[attr["Name"]] = values.reshape(-1, ncomp) if ncomp > 1 else values
     points = re.search(r'NumberOfPoints="(\d+)"', head)
     arrays["NumberOfPoints"] = int(points.group(1)) if points else None
@@ -107,24 +108,28 @@ def test_case_file_records_the_versions(ds):
 def test_export_writes_every_snapshot_as_read_back(case_file, ds, tmp_path, capsys):
     out = tmp_path / "vtk"
     assert main(["export", str(case_file), "--out", str(out)]) == 0
-    assert "grains.pvd (9 snapshots), slices.pvd (41 frames)" in capsys.readouterr().out
+    # the tube is empty at t = 0 and 0.05 s: no grain file (meshio reads no grid without cells)
+    assert ("grains.pvd (7 snapshots; 2 without grains, not written), slices.pvd (41 frames)"
+            in capsys.readouterr().out)
     series = read_pvd(out / "grains.pvd")
-    times = ds.tube_snapshot_time.values
-    assert len(series) == len(times) == 9
-    start = 0
-    for (t, name), t_case, n in zip(series, times, ds.tube_snapshot_count.values):
+    counts = ds.tube_snapshot_count.values
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    full = counts > 0
+    assert counts[:2].tolist() == [0, 0] and full[2:].all()
+    assert len(series) == 7 and not (out / "grains_00000.vtu").exists()
+    assert [name for _, name in series] == [f"grains_{k:05d}.vtu" for k in np.nonzero(full)[0]]
+    for (t, name), t_case, n, start in zip(series, ds.tube_snapshot_time.values[full], counts[full],
+                                           starts[full]):
         assert t == pytest.approx(t_case, abs=1e-12)
         grains = read_vtk(out / name)
         sl = slice(start, start + n)
-        start += n
-        assert grains["NumberOfPoints"] == n
+        assert grains["NumberOfPoints"] == n and grains["TimeValue"] == [t]
         np.testing.assert_array_equal(grains["points"], ds.tube_snapshot_position.values[sl])
         np.testing.assert_array_equal(grains["velocity_m_per_s"], ds.tube_snapshot_velocity.values[sl])
         np.testing.assert_array_equal(grains["angular_velocity_rad_per_s"],
                                       ds.tube_snapshot_angular_velocity.values[sl])
         np.testing.assert_array_equal(grains["grain_id"], ds.tube_snapshot_grain_id.values[sl])
         np.testing.assert_allclose(grains["radius_m"], 0.7e-3, rtol=1e-7)  # float32 of d/2
-    assert read_vtk(out / series[0][1])["NumberOfPoints"] == 0, "t = 0: an empty tube, written all the same"
 
 
 def test_export_writes_the_slice_fields_on_their_grid(case_file, ds, tmp_path):
@@ -135,12 +140,71 @@ def test_export_writes_the_slice_fields_on_their_grid(case_file, ds, tmp_path):
     k = 30
     assert series[k][0] == pytest.approx(float(ds.time[k]), abs=1e-12)
     grid = read_vtk(out / series[k][1])
-    np.testing.assert_allclose(grid["x_coordinates"], np.arange(7) * 0.0035, atol=1e-15)
-    np.testing.assert_allclose(grid["y_coordinates"], [-0.0035, 0.0035])
+    points = grid["points"]
+    np.testing.assert_allclose(np.unique(points[:, 0]), np.arange(7) * 0.0035, atol=1e-15)
+    np.testing.assert_allclose(np.unique(points[:, 1:]), [-0.0035, 0.0035])
+    assert (grid["types"] == 12).all() and len(grid["types"]) == 6  # one hexahedron per slice
+    assert grid["TimeValue"] == [series[k][0]]
     np.testing.assert_array_equal(grid["porosity"], ds.porosity.values[k])
     np.testing.assert_array_equal(grid["velocity_m_per_s"], ds.velocity.values[k])
     np.testing.assert_array_equal(grid["gas_pressure_Pa"], ds.gas_pressure.values[k])
     assert "README.txt" in {p.name for p in out.iterdir()}
+
+
+@pytest.fixture(scope="module")
+def exported(case_file, tmp_path_factory):
+    out = tmp_path_factory.mktemp("exported") / "vtk"
+    assert main(["export", str(case_file), "--out", str(out)]) == 0
+    return out
+
+
+def _every_file(out: Path) -> list[tuple[float, Path]]:
+    """(time, path) of every file of both collections; every .vtu of the folder is in one."""
+    files = [(t, out / name) for pvd in ("grains.pvd", "slices.pvd") for t, name in read_pvd(out / pvd)]
+    assert sorted(p for _, p in files) == sorted(out.glob("*.vtu"))
+    return files
+
+
+def test_time_value_is_field_data_of_the_dataset_before_its_piece(exported):
+    """Where the VTK XML format puts a dataset's field data; VTK ignores it inside <Piece>."""
+    for t, path in _every_file(exported):
+        raw = path.read_bytes()
+        head = raw[:raw.index(b"<AppendedData")].decode() + "</VTKFile>"
+        grid = ET.fromstring(head).find("UnstructuredGrid")
+        assert [child.tag for child in grid] == ["FieldData", "Piece"], path.name
+        (array,) = grid.find("FieldData")
+        assert array.get("Name") == "TimeValue" and float(array.text) == t, path.name
+        assert grid.find("Piece").find("FieldData") is None
+
+
+def test_every_export_file_is_read_by_meshio_with_its_time(exported, ds):
+    meshio = pytest.importorskip("meshio")
+    counts = ds.tube_snapshot_count.values
+    for t, path in _every_file(exported):
+        mesh = meshio.read(path)
+        assert mesh.field_data["TimeValue"].tolist() == [t], path.name
+        if path.name.startswith("grains_"):
+            k = int(path.stem.split("_")[1])
+            sl = slice(int(counts[:k].sum()), int(counts[:k + 1].sum()))
+            np.testing.assert_array_equal(mesh.points, ds.tube_snapshot_position.values[sl])
+            np.testing.assert_array_equal(mesh.point_data["grain_id"], ds.tube_snapshot_grain_id.values[sl])
+            assert [block.type for block in mesh.cells] == ["vertex"]
+        else:
+            k = int(path.stem.split("_")[1])
+            assert [block.type for block in mesh.cells] == ["hexahedron"]
+            np.testing.assert_array_equal(mesh.cell_data["porosity"][0], ds.porosity.values[k])
+
+
+def test_every_export_file_is_read_by_vtk_with_its_time(exported):
+    """Runs where the `vtk` package is installed (a 140 MB wheel, not in the test extra)."""
+    vtk = pytest.importorskip("vtk")
+    for t, path in _every_file(exported):
+        reader = vtk.vtkXMLUnstructuredGridReader()
+        reader.SetFileName(str(path))
+        reader.Update()
+        data = reader.GetOutput()
+        assert reader.GetErrorCode() == 0 and data.GetNumberOfPoints() > 0, path.name
+        assert data.GetFieldData().GetArray("TimeValue").GetValue(0) == t, path.name
 
 
 def test_export_of_a_file_without_whole_tube_snapshots_exits_2_naming_the_key(ds, tmp_path, capsys):

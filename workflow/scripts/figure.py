@@ -107,6 +107,7 @@ def grains_3d(inp, spec, settings):
     and slug are those where a slug of the profile selection (else any slug) holds the most grains
     of the snapshots (analysis.snapshots.slug_in_snapshots), so the stretch drawn shows a slug."""
     from analysis.casefile import geometry
+    from analysis.plots import slug_grains
     from analysis.snapshots import slug_in_snapshots, snapshot, snapshot_times
     ds = _case(inp.case)
     geo = geometry(ds)
@@ -130,27 +131,27 @@ def grains_3d(inp, spec, settings):
         center = float(np.mean(pos[:, 0])) if len(pos) else geo.tube_length / 2
         facts.append(f"no slug in any snapshot of this run: last snapshot (t = {times[k]:.2f} s)")
     _, pos, vel = snapshot(ds, k)
-    inside = np.abs(pos[:, 0] - center) <= stretch / 2
-    pos, vel = pos[inside], vel[inside]
-    fig = Figure(figsize=(9.0, 3.0))
-    ax = fig.add_axes((0.0, 0.0, 0.9, 1.0), projection="3d")
+    x_range = (center - stretch / 2, center + stretch / 2)
+    inside = (pos[:, 0] >= x_range[0]) & (pos[:, 0] <= x_range[1])
+    fig = slug_grains(pos[inside], vel[inside], x_range, geo.tube_radius, geo.particle_diameter)
     mm = 1e3
-    axis_pt = 9.0 * 72 * 0.62  # rendered length of the x axis (points) at this zoom and view
-    size = (geo.particle_diameter / stretch * axis_pt) ** 2
-    sc = ax.scatter(pos[:, 0] * mm, pos[:, 1] * mm, pos[:, 2] * mm, s=size, c=vel[:, 0],
-                    cmap="viridis", depthshade=True, edgecolors="k", linewidths=0.2)
-    ax.set_xlim((center - stretch / 2) * mm, (center + stretch / 2) * mm)
-    ax.set_ylim(-geo.tube_radius * mm, geo.tube_radius * mm)
-    ax.set_zlim(-geo.tube_radius * mm, geo.tube_radius * mm)
-    ax.set_box_aspect((stretch, geo.tube_diameter, geo.tube_diameter), zoom=2.2)
-    ax.set_xlabel("x (mm)", labelpad=12)
-    ax.set_yticks([])
-    ax.set_zticks([])
-    ax.view_init(elev=12, azim=-82)
-    cax = fig.add_axes((0.9, 0.2, 0.015, 0.6))
-    fig.colorbar(sc, cax=cax, label="axial velocity (m/s)")
-    facts.append(f"{len(pos)} grains in the {stretch * 100:.1f} cm stretch drawn")
+    facts.append(f"{int(inside.sum())} grains in the {stretch * 100:.1f} cm stretch drawn "
+                 f"(x = {x_range[0] * mm:.0f}-{x_range[1] * mm:.0f} mm){_snapshot_window(ds, x_range)}")
     return fig, facts
+
+
+def _snapshot_window(ds, x_range) -> str:
+    """'' or why part of the stretch drawn holds no grain: the snapshots record only
+    output.snapshot_x_min .. x_max."""
+    from analysis.casefile import config
+    try:
+        cfg = config(ds)
+        lo, hi = float(cfg["output.snapshot_x_min"]), float(cfg["output.snapshot_x_max"])
+    except (KeyError, ValueError):
+        return ""
+    if lo <= x_range[0] and x_range[1] <= hi:
+        return ""
+    return f"; the snapshots hold only the grains in x = {lo * 1e3:.0f}-{hi * 1e3:.0f} mm"
 
 
 def _curve_facts(table, x, group=None) -> list[str]:
