@@ -425,7 +425,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     if not overwrite:
         done = finished_case(out, case, initial_state)
         if done:
-            log.info("%s", done)
+            log.warning("%s", done)  # shown with --quiet too: the command did nothing
             return out
     start = read_initial_state(initial_state, case) if initial_state else None
     digest = case_digest(case) + (f":{Path(initial_state).resolve()}" if initial_state else "")
