@@ -320,7 +320,8 @@ def finished_case(out: Path, case: Case, initial_state: str | Path | None) -> st
                 raise OutputExistsError(f"output {out} holds a finished run without the state to continue it "
                                         f"(no restart_state); --overwrite runs the case again from the start")
             return None
-    differences = ", ".join(f"{key} {old} -> {new}" for key, (old, new) in changed.items())
+    shown = lambda value: str(value).lower() if isinstance(value, bool) else str(value)  # as --set spells it
+    differences = ", ".join(f"{key} {shown(old)} -> {shown(new)}" for key, (old, new) in changed.items())
     raise OutputExistsError(f"output {out} holds a finished run (stop_reason {reason}, t = {end:.3f} s) that "
                             f"this one would replace (file -> this run): {differences}; --overwrite "
                             f"replaces it, or choose another --out")
