@@ -282,6 +282,11 @@ def _same_start(there: str, here: str | Path | None) -> bool:
     return there == here or Path(there).resolve() == Path(here).resolve()
 
 
+def _spelt(value) -> str:
+    """A key's value as --set takes it (true, not True)."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
 def finished_case(out: Path, case: Case, initial_state: str | Path | None) -> str | None:
     """What to do with a file already at `out`: None when there is none, or when this run continues
     it to a longer run.duration; the one-line notice when it holds this very run (nothing to do).
@@ -320,8 +325,7 @@ def finished_case(out: Path, case: Case, initial_state: str | Path | None) -> st
                 raise OutputExistsError(f"output {out} holds a finished run without the state to continue it "
                                         f"(no restart_state); --overwrite runs the case again from the start")
             return None
-    shown = lambda value: str(value).lower() if isinstance(value, bool) else str(value)  # as --set spells it
-    differences = ", ".join(f"{key} {shown(old)} -> {shown(new)}" for key, (old, new) in changed.items())
+    differences = ", ".join(f"{key} {_spelt(old)} -> {_spelt(new)}" for key, (old, new) in changed.items())
     raise OutputExistsError(f"output {out} holds a finished run (stop_reason {reason}, t = {end:.3f} s) that "
                             f"this one would replace (file -> this run): {differences}; --overwrite "
                             f"replaces it, or choose another --out")
