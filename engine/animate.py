@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import os
 import shutil
+import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .export import ExportError, open_case_file, require_tube_snapshots, tube_snapshots
+from .output import DiskFullError, out_of_space
 
 SUFFIXES = (".gif", ".mp4", ".png")  # .png: the last frame alone, a still
 
@@ -91,7 +93,8 @@ class _Frames:
 
 def animate_case(case_file: str | Path, out: str | Path | None = None, fps: float = 10.0) -> Animation:
     """Write the animation of `case_file` to `out` (default: next to it, CASE.gif), one frame per
-    whole-tube snapshot at `fps` frames per second; a .png `out` gets the last frame only."""
+    whole-tube snapshot at `fps` frames per second; a .png `out` gets the last frame only.
+    DiskFullError (nothing left behind) when the disk fills."""
     import matplotlib.pyplot as plt
     from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
 
@@ -117,6 +120,10 @@ def animate_case(case_file: str | Path, out: str | Path | None = None, fps: floa
             movie.save(tmp, writer=writer, dpi=100)
             count = len(snapshots)
         os.replace(tmp, out)
+    except (OSError, RuntimeError, subprocess.CalledProcessError) as err:  # ffmpeg fails as a process
+        if out_of_space(err, out.parent):
+            raise DiskFullError(out) from err
+        raise
     finally:
         plt.close(frames.fig)
         if tmp.exists():

@@ -215,6 +215,11 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("run.checkpoint_interval", 120.0, "s (wall)",
         "Wall-clock seconds between checkpoints of a running case (0: none periodic; Ctrl-C and "
         "SIGTERM still write one).", low=0.0, high=1e6),
+    Key("run.warm_start_any", False, "",
+        "Accept a warm start (--initial-state) from a case file of another tube length or "
+        "inclination: grains beyond this tube's length are dropped, gravity turns, and the run logs "
+        "what changed (false: refused). Another tube diameter or grain is refused regardless.",
+        kind=bool),
     Key("output.interval", 0.01, "s", "Simulated time between output frames (time series and slices).",
         low=0.0, low_open=True, high=100.0),
     Key("output.slice_width", 0.0035, "m", "Width of the slices along the tube for slice fields.",

@@ -57,7 +57,8 @@ def _run(args: argparse.Namespace) -> int:
     """Run one case to a case file; numerical failures exit 1 with a one-line reason."""
     import logging
 
-    from .run import InitialStateError, OutputPathError, RunError, RunInterrupted, run_case
+    from .run import (InitialStateError, NoSpaceError, OutputExistsError, OutputPathError, RunError,
+                      RunInterrupted, run_case)
     from .simulation import check_threads
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
@@ -70,15 +71,15 @@ def _run(args: argparse.Namespace) -> int:
         return 2
     try:
         run_case(case, args.out, quiet=args.quiet, initial_state=args.initial_state, threads=args.threads,
-                 early_exit=lambda err: _exit_interrupted(err, args.argv))
-    except InitialStateError as err:  # refused before any step
-        print(f"plugsim: error: {err}", file=sys.stderr)
-        return 2
-    except OutputPathError as err:  # refused before any step
+                 early_exit=lambda err: _exit_interrupted(err, args.argv), overwrite=args.overwrite)
+    except (InitialStateError, OutputPathError, OutputExistsError) as err:  # refused before any step
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
     except RunError as err:
         print(f"plugsim: run failed: {err}", file=sys.stderr)
+        return 1
+    except NoSpaceError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
         return 1
     except RunInterrupted as err:
         print(f"plugsim: {_interrupted(err, args.argv)}", file=sys.stderr)
@@ -87,13 +88,17 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    """ParaView files of a case file; bad input exits 2 with one line."""
+    """ParaView files of a case file; bad input exits 2 with one line, a full disk 1."""
     from .export import ExportError, export_case
+    from .output import DiskFullError
     try:
         done = export_case(args.case_file, args.out)
     except ExportError as err:
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
+    except DiskFullError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 1
     empty = f"; {done.empty_snapshots} without grains, not written" if done.empty_snapshots else ""
     print(f"wrote {done.folder}/: grains.pvd ({done.grain_files} snapshots{empty}), slices.pvd "
           f"({done.slice_files} frames), {done.size / 1e6:.1f} MB")
@@ -101,14 +106,18 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _animate(args: argparse.Namespace) -> int:
-    """An animation of a case file; bad input exits 2 with one line."""
+    """An animation of a case file; bad input exits 2 with one line, a full disk 1."""
     from .animate import animate_case
     from .export import ExportError
+    from .output import DiskFullError
     try:
         done = animate_case(args.case_file, args.out, fps=args.fps)
     except ExportError as err:
         print(f"plugsim: error: {err}", file=sys.stderr)
         return 2
+    except DiskFullError as err:
+        print(f"plugsim: error: {err}", file=sys.stderr)
+        return 1
     print(f"wrote {done.path}: {done.frames} frames, {done.size / 1e6:.1f} MB")
     return 0
 
@@ -158,15 +167,26 @@ def _main(argv: list[str]) -> int:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
     p.set_defaults(func=_check)
-    p = sub.add_parser("run", help="run one case from an empty tube and write its NetCDF case file")
+    p = sub.add_parser(
+        "run", help="run one case from an empty tube and write its NetCDF case file",
+        description="Run one case and write its NetCDF case file. Run again with the same arguments, "
+                    "it resumes from its checkpoint (OUT.ckpt) or, when OUT is finished, says so and "
+                    "does nothing; with a longer run.duration it continues OUT from its end. A shorter "
+                    "run.duration or other keys would replace OUT with another result: refused (exit 2, "
+                    "naming each key that differs) unless --overwrite. A full disk exits 1 and keeps "
+                    "the last checkpoint, from which the same command resumes once space is freed.")
     p.add_argument("case", help="case YAML, e.g. config/cases/horizontal.yaml")
     p.add_argument("--out", required=True, help="case file to write (NetCDF), e.g. results/h.nc")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a finished case file at OUT that holds another result (other keys, a "
+                        "shorter run.duration), running the case again from the start (or its checkpoint)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
     p.add_argument("--initial-state", metavar="FROM.nc", default=None,
                    help="warm start: begin with the grains at the end of another case file "
-                        "(same grains and tube diameter) instead of an empty tube")
+                        "(same grains and tube diameter; another tube length or inclination needs "
+                        "--set run.warm_start_any=true) instead of an empty tube")
     p.add_argument("--threads", type=int, default=1,
                    help="threads for the contact forces (default 1; 2 run a horizontal case ~1.5x "
                         "faster on 2 idle cores, a vertical one ~1.1x, docs/performance.md; results "

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .output import DiskFullError, out_of_space
+
 SNAPSHOT_KEY = "output.tube_snapshot_interval"
 MARKER = "README.txt"  # every export folder has it; an existing folder without it is not replaced
 
@@ -213,7 +215,8 @@ def _readme(ds, case_file: Path) -> str:
 
 
 def export_case(case_file: str | Path, out: str | Path | None = None) -> Export:
-    """Write the ParaView files of `case_file` into folder `out` (default: next to it, CASE_vtk)."""
+    """Write the ParaView files of `case_file` into folder `out` (default: next to it, CASE_vtk);
+    DiskFullError (nothing left behind) when the disk fills."""
     case_file = Path(case_file)
     out = Path(out) if out is not None else case_file.with_name(case_file.stem + "_vtk")
     check_out_folder(out)
@@ -229,6 +232,10 @@ def export_case(case_file: str | Path, out: str | Path | None = None) -> Export:
         if out.exists():
             shutil.rmtree(out)
         os.replace(tmp, out)
+    except OSError as err:
+        if out_of_space(err, out.parent):
+            raise DiskFullError(out) from err
+        raise
     finally:
         if tmp.exists():
             shutil.rmtree(tmp)

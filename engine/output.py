@@ -6,7 +6,9 @@ temporary name that is renamed into place only when complete.
 
 from __future__ import annotations
 
+import errno
 import os
+import subprocess
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -214,8 +216,62 @@ def global_attributes(case, extra: dict) -> dict:
     return attrs
 
 
+# Below this many free bytes a failed write is taken for a full disk: netCDF4/HDF5 report one as
+# "NetCDF: HDF error", without an errno, and a write fails with up to a chunk's worth still free.
+LOW_SPACE = 64 * 2**20
+
+
+class DiskFullError(RuntimeError):
+    """Writing `path` failed because the filesystem holding it is full; the message is one line
+    naming the filesystem (mount point and type) and the path."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        mount, kind = filesystem(self.path)
+        super().__init__(f"no space left on {mount} ({kind}) writing {self.path}")
+
+
+def free_bytes(folder: str | Path) -> int:
+    """Bytes this process can still write in `folder` (root may use the blocks reserved for it)."""
+    stat = os.statvfs(folder)
+    return (stat.f_bfree if os.geteuid() == 0 else stat.f_bavail) * stat.f_frsize
+
+
+def filesystem(path: str | Path) -> tuple[str, str]:
+    """(mount point, "type device") of the filesystem that holds `path` (its folder if it does not exist)."""
+    folder = Path(os.path.abspath(path))
+    while not folder.exists() or not folder.is_dir():
+        folder = folder.parent
+    while not os.path.ismount(folder):
+        folder = folder.parent
+    kind = "filesystem"
+    try:
+        with open("/proc/mounts") as mounts:
+            for line in mounts:
+                device, mount, fstype = line.split()[:3]
+                if mount == str(folder):
+                    kind = fstype if device == fstype else f"{fstype} {device}"
+    except OSError:
+        pass
+    return str(folder), kind
+
+
+def out_of_space(err: BaseException, folder: str | Path) -> bool:
+    """Whether `err`, raised while writing into `folder`, means that its filesystem is full
+    (call it before removing what was partly written)."""
+    if isinstance(err, OSError) and err.errno in (errno.ENOSPC, errno.EDQUOT):
+        return True
+    if not isinstance(err, (OSError, RuntimeError, subprocess.CalledProcessError)):
+        return False
+    try:
+        return free_bytes(folder) < LOW_SPACE
+    except OSError:
+        return False
+
+
 def write_atomically(ds: xr.Dataset, out: str | Path) -> None:
-    """Write ds to `out` via a temporary file in the same folder, renamed only when complete."""
+    """Write ds to `out` via a temporary file in the same folder, renamed only when complete;
+    DiskFullError (nothing left at `out`'s temporary name) when the disk fills."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f"{out.name}.tmp-{os.getpid()}")
@@ -229,6 +285,10 @@ def write_atomically(ds: xr.Dataset, out: str | Path) -> None:
         with open(tmp, "rb") as handle:
             os.fsync(handle.fileno())
         os.replace(tmp, out)
+    except (OSError, RuntimeError) as err:
+        if out_of_space(err, out.parent):
+            raise DiskFullError(out) from err
+        raise
     finally:
         if tmp.exists():
             tmp.unlink()

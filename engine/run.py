@@ -21,9 +21,9 @@ import yaml
 
 from analysis.timeseries import MeanError, mean_error
 
-from .case import Case
+from .case import Case, defaults, flatten
 from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
-from .output import Recorder, global_attributes, write_atomically
+from .output import DiskFullError, Recorder, global_attributes, out_of_space, write_atomically
 from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 
 log = logging.getLogger("plugsim")
@@ -43,6 +43,16 @@ class OutputPathError(ValueError):
     """An output path that cannot receive the case file (a directory, a missing or read-only folder)."""
 
 
+class OutputExistsError(ValueError):
+    """A file at the output that this run would replace with another result (the message names
+    each difference)."""
+
+
+class NoSpaceError(RuntimeError):
+    """The disk filled during a run; the message (one line) names the filesystem, the file being
+    written and the checkpoint kept."""
+
+
 class RunInterrupted(BaseException):  # not swallowed by broad `except Exception` (numba compile)
     """SIGINT or SIGTERM stopped a run; `checkpoint` is the file it resumes from (None: nothing saved)."""
 
@@ -60,6 +70,10 @@ def extends_only(key: str) -> bool:
     seed): the trajectory up to any time does not depend on it, so a run can be continued with
     another value."""
     return key.startswith("run.") and key != "run.seed"
+
+
+# keys that change neither a run's trajectory nor when it stops: a finished file is the same result
+NO_EFFECT = ("run.checkpoint_interval", "run.warm_start_any")
 
 
 def case_digest(case: Case) -> str:
@@ -201,18 +215,27 @@ class Progress:
             self.bar.close()
 
 
-def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str) -> None:
+def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str, stop=None) -> None:
+    """Pickle the run to `path` (replaced only when complete; DiskFullError keeps the older one).
+    `stop`: (case, stop_reason, steady window) of a run that has ended but whose file could not be
+    written."""
     tmp = path.with_name(path.name + ".tmp")
     try:
         with open(tmp, "wb") as handle:
-            pickle.dump({"digest": digest, "sim": sim, "recorder": recorder}, handle, protocol=5)
+            pickle.dump({"digest": digest, "sim": sim, "recorder": recorder, "stop": stop}, handle, protocol=5)
         os.replace(tmp, path)
+    except OSError as err:
+        if out_of_space(err, path.parent):
+            raise DiskFullError(path) from err
+        raise
     finally:
         if tmp.exists():
             tmp.unlink()
 
 
-def _load_checkpoint(path: Path, digest: str):
+def _load_checkpoint(path: Path, digest: str, case: Case):
+    """(sim, recorder, stop) of the checkpoint `path` of this case, or None; stop: (stop_reason,
+    steady window) when it holds the end of a run whose file was not written, for the same keys."""
     if not path.exists():
         return None
     with open(path, "rb") as handle:
@@ -220,7 +243,8 @@ def _load_checkpoint(path: Path, digest: str):
     if state.get("digest") != digest:
         log.warning("ignoring checkpoint %s: it belongs to a different case configuration", path)
         return None
-    return state["sim"], state["recorder"]
+    stop = state.get("stop")
+    return state["sim"], state["recorder"], (stop[1:] if stop and stop[0] == case else None)
 
 
 def restart_state(sim: Simulation, digest: str) -> xr.Dataset:
@@ -244,10 +268,67 @@ def _load_finished(out: Path, case: Case, digest: str, frames: int):
                     or ds.sizes["time"] - 1 >= frames):
                 return None
             sim = pickle.loads(ds.restart_state.values.tobytes())
-            return sim, Recorder.from_dataset(ds.load(), case, sim)
+            return sim, Recorder.from_dataset(ds.load(), case, sim), None
     except Exception as err:  # unreadable, or a state the code cannot load: run from the start
         log.warning("not continuing %s (%s): running from the start", out, str(err).splitlines()[0])
         return None
+
+
+def _same_start(there: str, here: str | Path | None) -> bool:
+    """Whether the warm-start file recorded in a case file (resolved path, or as given) is `here`."""
+    here = "" if here is None else str(here)
+    if not there or not here:
+        return there == here
+    return there == here or Path(there).resolve() == Path(here).resolve()
+
+
+def _spelt(value) -> str:
+    """A key's value as --set takes it (true, not True)."""
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def finished_case(out: Path, case: Case, initial_state: str | Path | None) -> str | None:
+    """What to do with a file already at `out`: None when there is none, or when this run continues
+    it to a longer run.duration; the one-line notice when it holds this very run (nothing to do).
+    Raises OutputExistsError, naming each key that differs (file -> this run), when the run would
+    replace it with another result."""
+    if not out.exists():
+        return None
+    from . import __version__
+    try:
+        with xr.open_dataset(out, engine="netcdf4") as ds:
+            attrs, end = dict(ds.attrs), float(ds.time.values[-1])
+            digest = ds.restart_state.attrs.get("digest") if "restart_state" in ds else None
+        raw = yaml.safe_load(attrs["config_yaml"])
+    except Exception:  # not a readable case file: not replaced unasked either
+        raise OutputExistsError(f"output {out} exists and is not a plugsim case file; --overwrite replaces "
+                                f"it, or choose another --out") from None
+    there = {**defaults(), **flatten(raw if isinstance(raw, dict) else {})}
+    here = dict(case.items())
+    changed = {key: (there.get(key, "(none)"), here.get(key, "(none)")) for key in sorted(set(there) | set(here))
+               if key not in NO_EFFECT and there.get(key) != here.get(key)}
+    if attrs.get("engine_version") != __version__:
+        changed["engine version"] = (attrs.get("engine_version"), __version__)
+    start = digest.partition(":")[2] if digest else str(attrs.get("initial_state", ""))
+    if not _same_start(start, initial_state):
+        changed["--initial-state"] = (start or "(none)", str(initial_state or "(none)"))
+    reason = attrs.get("stop_reason")
+    done = f"{out} is complete (stop_reason {reason}, t = {end:.3f} s): nothing to do (--overwrite runs it again)"
+    if not changed:
+        return done
+    longer = "run.duration" in changed and changed["run.duration"][1] > changed["run.duration"][0]
+    if longer and all(extends_only(key) for key in changed):
+        if len(changed) == 1 and reason in ("steady", "blocked"):
+            return done  # it ended on its own before the old run.duration, as it would before the new
+        if reason in ("duration", "max_duration"):
+            if digest is None:
+                raise OutputExistsError(f"output {out} holds a finished run without the state to continue it "
+                                        f"(no restart_state); --overwrite runs the case again from the start")
+            return None
+    differences = ", ".join(f"{key} {_spelt(old)} -> {_spelt(new)}" for key, (old, new) in changed.items())
+    raise OutputExistsError(f"output {out} holds a finished run (stop_reason {reason}, t = {end:.3f} s) that "
+                            f"this one would replace (file -> this run): {differences}; --overwrite "
+                            f"replaces it, or choose another --out")
 
 
 class _Signals:
@@ -285,7 +366,8 @@ def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.nda
     """Positions, velocities, angular velocities of the grains at the end of case file `path`, for
     a warm start of `case`; grains beyond case's tube length are left out. Raises
     InitialStateError (naming the file and the mismatch) when the grains or the tube
-    cross-section differ, or the file is not a case file."""
+    cross-section differ, or the file is not a case file, and, unless run.warm_start_any, when
+    the tube length or inclination differ (with it, logs one line saying what changed)."""
     path = Path(path)
     if not path.exists():
         raise InitialStateError(f"initial state {path}: no such file")
@@ -305,47 +387,79 @@ def read_initial_state(path: str | Path, case: Case) -> tuple[np.ndarray, np.nda
             if not math.isclose(float(ds.attrs[attr]), case[key], rel_tol=1e-9):
                 raise InitialStateError(f"initial state {path}: {key} = {float(ds.attrs[attr]):g} there, "
                                  f"{case[key]:g} here; a warm start needs the same grains and tube cross-section")
+        changed = []
+        for attr, key, unit in (("inclination_deg", "tube.inclination_deg", "degree"), ("tube_length", "tube.length", "m")):
+            if attr not in ds.attrs:
+                raise InitialStateError(f"initial state {path}: no {attr} attribute (not a plugsim case file)")
+            if not math.isclose(float(ds.attrs[attr]), case[key], rel_tol=1e-9, abs_tol=1e-12):
+                changed.append(f"{key} = {float(ds.attrs[attr]):g} there, {case[key]:g} here ({unit})")
         pos, vel, omg = (ds[name].values.astype(float) for name in
                          ("final_position", "final_velocity", "final_angular_velocity"))
     keep = pos[:, 0] <= case["tube.length"]
+    if changed and not case["run.warm_start_any"]:
+        raise InitialStateError(f"initial state {path}: {'; '.join(changed)}; a warm start across tube length or "
+                                f"inclination drops grains or turns gravity: --set run.warm_start_any=true "
+                                f"accepts it")
+    if changed:
+        dropped = int((~keep).sum())
+        log.warning("warm start from %s: %s: %d of %d grains kept, %d beyond x = %g m dropped", path,
+                    "; ".join(changed), len(pos) - dropped, len(pos), dropped, case["tube.length"])
     return pos[keep], vel[keep], omg[keep]
 
 
 def run_case(case: Case, out: str | Path, quiet: bool = True, initial_state: str | Path | None = None,
-             threads: int = 1, early_exit=None) -> Path:
+             threads: int = 1, early_exit=None, overwrite: bool = False) -> Path:
     """Run `case` from an empty tube, or from the grains at the end of the case file
     `initial_state` (warm start), or from its checkpoint, or continue the finished case file `out`
-    to a longer run.duration, and write the case file `out`. `threads`: numba threads for the
-    contact forces (a resumed run keeps its checkpoint's). SIGINT and SIGTERM save a checkpoint at
-    the next frame boundary and raise RunInterrupted; before the first frame (nothing to save) they
-    call `early_exit(RunInterrupted)` if given (the command line ends the process there), then raise."""
+    to a longer run.duration, and write the case file `out`. A file at `out` that holds this run
+    is left as it is (logged); one that this run would replace with another result raises
+    OutputExistsError unless `overwrite` (then the case runs from the start, or from its
+    checkpoint). `threads`: numba threads for the contact forces (a resumed run keeps its
+    checkpoint's). SIGINT and SIGTERM save a checkpoint at the next frame boundary and raise
+    RunInterrupted; before the first frame (nothing to save) they call `early_exit(RunInterrupted)`
+    if given (the command line ends the process there), then raise. A full disk raises
+    NoSpaceError, the last checkpoint kept."""
     with _Signals(early_exit) as signals:
-        return _run_case(case, Path(out), quiet, initial_state, threads, signals)
+        return _run_case(case, Path(out), quiet, initial_state, threads, signals, overwrite)
 
 
 def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | None, threads: int,
-              signals: _Signals) -> Path:
+              signals: _Signals, overwrite: bool) -> Path:
     check_threads(threads)
     check_output_path(out)
+    if not overwrite:
+        done = finished_case(out, case, initial_state)
+        if done:
+            log.warning("%s", done)  # shown with --quiet too: the command did nothing
+            return out
     start = read_initial_state(initial_state, case) if initial_state else None
     digest = case_digest(case) + (f":{Path(initial_state).resolve()}" if initial_state else "")
     ckpt = checkpoint_path(out)
     interval, duration = case["output.interval"], case["run.duration"]
     frames = int(round(duration / interval))
-    resumed = _load_checkpoint(ckpt, digest)
+    resumed = _load_checkpoint(ckpt, digest, case)
     if resumed and len(resumed[1].times) - 1 > frames:
         log.warning("ignoring checkpoint %s: it is past run.duration = %g s", ckpt, duration)
         resumed = None
+    saved = resumed[0].time if resumed else None  # simulated time of the checkpoint on disk
     if resumed:
         log.info("resuming %s from t = %.3f s", out, resumed[0].time)
-    else:
+    elif not overwrite:
         resumed = _load_finished(out, case, digest, frames)
         if resumed:
             log.info("continuing %s from its end, t = %.3f s, to %g s", out, resumed[0].time, duration)
+
+    def no_space(err: DiskFullError, t: float) -> NoSpaceError:
+        kept = (f"checkpoint {ckpt} (t = {saved:.3f} s) kept: free space there and run the same command to resume"
+                if saved is not None and ckpt.exists() else "no checkpoint saved: free space there and run the same "
+                "command to start again")
+        return NoSpaceError(f"{err}; the run stopped at t = {t:.3f} s, {kept}")
+
     if not kernels_compiled():
         log.info("compiling kernels (first run only, up to two minutes)")
+    stop = None
     if resumed:
-        sim, recorder = resumed
+        sim, recorder, stop = resumed
         sim.case = recorder.case = case  # differs at most in keys that only extend a run
     else:
         sim, recorder = Simulation(case, threads), Recorder(case)
@@ -362,11 +476,11 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
     last_save = started = time.monotonic()
     cpu_started = time.process_time()
-    reason, window = "duration", None
-    if case["run.until_steady"] and resumed:  # a longer run continued: steady already?
+    reason, window = stop or ("duration", None)  # stop: the run had ended, its file not written
+    if case["run.until_steady"] and resumed and not stop:  # a longer run continued: steady already?
         window = steady_window(recorder, case)
     try:
-        for _ in range(len(recorder.times) - 1, frames if window is None else 0):
+        for _ in range(len(recorder.times) - 1, frames if window is None and not stop else 0):
             sim.advance(interval)
             recorder.sample(sim)
             _check_health(sim)
@@ -382,13 +496,15 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                 raise RunInterrupted(signals.received, sim.time, ckpt)
             if case["run.checkpoint_interval"] > 0 and time.monotonic() - last_save > case["run.checkpoint_interval"]:
                 _save_checkpoint(ckpt, sim, recorder, digest)
-                last_save = time.monotonic()
+                saved, last_save = sim.time, time.monotonic()
     except FeedBlocked as err:  # a result, not a failure: the file says so (stop_reason blocked)
         _check_health(sim)  # unless the state is broken: then the run failed
         reason = "blocked"
         log.warning("case %s: %s; the run ends here", out.name, err)
     except SimulationError as err:
         raise RunError(str(err)) from err
+    except DiskFullError as err:
+        raise no_space(err, sim.time) from None
     except RunInterrupted as err:
         if err.checkpoint is None and ckpt.exists():
             err.checkpoint = ckpt  # stopped before a new frame: the older checkpoint still resumes
@@ -417,8 +533,16 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
              "initial_mass": 0.0 if start is None else len(start[0]) * sim.model.mass,
              "blocked_time": sim.time if reason == "blocked" else math.nan,
              **_steady_attributes(window)}
-    write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim))
-                     .merge(restart_state(sim, digest)), out)
+    try:
+        write_atomically(recorder.dataset(global_attributes(case, extra)).merge(Recorder.final_state(sim))
+                         .merge(restart_state(sim, digest)), out)
+    except DiskFullError as err:
+        try:  # the end of the run, to write its file from once space is freed
+            _save_checkpoint(ckpt, sim, recorder, digest, stop=(case, reason, window))
+            saved = sim.time
+        except DiskFullError:
+            pass  # the older checkpoint, if any, is still there
+        raise no_space(err, sim.time) from None
     if ckpt.exists():
         ckpt.unlink()
     log.info("wrote %s (%s, t = %.3f s)", out, reason, sim.time)

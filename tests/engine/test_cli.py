@@ -140,12 +140,45 @@ def test_a_finished_run_continues_to_a_longer_duration_bit_for_bit(tmp_path):
         assert b.attrs["config_yaml"] == a.attrs["config_yaml"] and b.sizes["time"] == 31
         for name in a.data_vars:  # restart_state included: the engine's state at the end
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
-    # another configuration, or the same duration again, starts over (the result is not mixed)
-    res = plugsim("run", str(CASE), "--out", str(continued), *sets(TINY + snapshots + ["run.duration=0.3",
-                                                                                         "run.seed=1"]))
+    # another configuration is refused (test below); with --overwrite it starts over (not mixed)
+    res = plugsim("run", str(CASE), "--out", str(continued), "--overwrite",
+                  *sets(TINY + snapshots + ["run.duration=0.3", "run.seed=1"]))
     assert res.returncode == 0 and "continuing" not in res.stderr
     with xr.open_dataset(continued) as b:
         assert b.attrs["resumed"] == 0 and b.attrs["seed"] == 1
+
+
+def test_a_finished_case_is_never_replaced_unasked(tmp_path):
+    """The same command again says the file is complete and does nothing; a shorter run.duration or
+    other keys are refused (exit 2, one line naming each key, file -> this run) and the file is
+    untouched; --overwrite replaces it."""
+    out = tmp_path / "x.nc"
+    run_case(Case.from_yaml(CASE, TINY + ["run.duration=0.1"]), out)
+    before = out.stat()
+
+    def untouched():
+        after = out.stat()
+        return (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+
+    res = plugsim("run", str(CASE), "--out", str(out), *sets(TINY + ["run.duration=0.1"]))
+    assert res.returncode == 0, res.stderr
+    assert res.stderr.strip().splitlines() == [
+        f"plugsim: {out} is complete (stop_reason duration, t = 0.100 s): nothing to do (--overwrite runs it again)"]
+    assert untouched()
+    for extra, differences in ((["run.duration=0.05"], "run.duration 0.1 -> 0.05"),
+                               (["particles.friction=0.3", "run.seed=1"],
+                                "particles.friction 0.5 -> 0.3, run.seed 0 -> 1")):
+        res = plugsim("run", str(CASE), "--out", str(out), *sets(TINY + ["run.duration=0.1"] + extra))
+        lines = res.stderr.strip().splitlines()
+        assert res.returncode == 2 and len(lines) == 1, lines
+        assert lines[0].startswith(f"plugsim: error: output {out} holds a finished run (stop_reason duration, "
+                                   f"t = 0.100 s) that this one would replace (file -> this run): {differences}; "
+                                   "--overwrite replaces it"), lines
+        assert untouched() and not checkpoint_path(out).exists()
+    res = plugsim("run", str(CASE), "--out", str(out), "--overwrite", *sets(TINY + ["run.duration=0.05"]))
+    assert res.returncode == 0, res.stderr
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["time"] == 6 and ds.attrs["resumed"] == 0
 
 
 def _wait_for(proc, text, timeout=120):
@@ -214,3 +247,74 @@ def test_a_cold_kernel_cache_is_announced_and_an_interrupt_while_compiling_ends_
     assert rest[-1].startswith("plugsim: interrupted by SIGINT before any new frame, "
                                "nothing saved; start again with: plugsim run "), rest
     assert not out.exists() and not checkpoint_path(out).exists()
+
+
+class _NoSpace:
+    """os.statvfs of a full filesystem (4 kB blocks, none free)."""
+
+    f_frsize, f_bfree, f_bavail = 4096, 0, 0
+
+
+def _full_disk(monkeypatch):
+    monkeypatch.setattr(os, "statvfs", lambda path: _NoSpace())
+
+
+def test_a_full_disk_at_the_case_file_is_one_line_and_the_run_resumes_from_its_end(tmp_path, capsys, monkeypatch):
+    """netCDF4 reports a full disk as "NetCDF: HDF error" (no errno): one line naming the
+    filesystem and the file, exit 1, no file at OUT, the end of the run kept as the checkpoint;
+    the same command then writes the file, equal to an uninterrupted run."""
+    args = ["run", str(CASE), "--out", str(tmp_path / "x.nc"), *sets(TINY + ["run.duration=0.05"])]
+    reference = run_case(Case.from_yaml(CASE, TINY + ["run.duration=0.05"]), tmp_path / "reference.nc")
+
+    def hdf_error(ds, path, *a, **kw):
+        Path(path).write_bytes(b"\x89HDF partial")
+        raise RuntimeError("NetCDF: HDF error")
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", hdf_error)
+    _full_disk(monkeypatch)
+    assert main(args) == 1
+    from engine.output import filesystem
+    mount, kind = filesystem(tmp_path)
+    out, ckpt = tmp_path / "x.nc", checkpoint_path(tmp_path / "x.nc")
+    assert capsys.readouterr().err.splitlines() == [
+        f"plugsim: error: no space left on {mount} ({kind}) writing {out}; the run stopped at t = 0.050 s, "
+        f"checkpoint {ckpt} (t = 0.050 s) kept: free space there and run the same command to resume"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reference.nc", "x.nc.ckpt"]
+    monkeypatch.undo()  # space freed
+    assert main(args) == 0 and not ckpt.exists()
+    with xr.open_dataset(reference) as a, xr.open_dataset(out) as b:
+        assert b.attrs["resumed"] == 1 and b.attrs["stop_reason"] == "duration"
+        for name in a.data_vars:
+            np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+
+def test_a_full_disk_at_a_checkpoint_keeps_the_previous_one(tmp_path, capsys, monkeypatch):
+    """Periodic checkpoints every frame; the third finds the disk full (ENOSPC): exit 1, one line,
+    the checkpoint of t = 0.02 s kept, from which the same command resumes."""
+    import errno
+    import pickle
+
+    out = tmp_path / "x.nc"
+    args = ["run", str(CASE), "--out", str(out), *sets(TINY + ["run.duration=0.05", "run.checkpoint_interval=1e-9"])]
+    dump, calls = pickle.dump, []
+
+    def filling(obj, handle, *a, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            handle.write(b"partial")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return dump(obj, handle, *a, **kw)
+
+    monkeypatch.setattr(pickle, "dump", filling)
+    assert main(args) == 1
+    ckpt = checkpoint_path(out)
+    lines = capsys.readouterr().err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("plugsim: error: no space left on "), lines
+    assert lines[0].endswith(f" writing {ckpt}; the run stopped at t = 0.030 s, checkpoint {ckpt} (t = 0.020 s) "
+                             "kept: free space there and run the same command to resume"), lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.nc.ckpt"]
+    monkeypatch.undo()  # space freed
+    assert main(args) == 0 and not ckpt.exists()
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["resumed"] == 1 and ds.sizes["time"] == 6

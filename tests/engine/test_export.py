@@ -254,3 +254,25 @@ def test_animation_has_one_frame_per_snapshot(case_file, ds, tmp_path):
     with Image.open(png) as image:
         assert image.format == "PNG" and image.size[0] > 800
     assert sorted(p.name for p in tmp_path.iterdir()) == ["grains.gif", "last.png"], "no temporary left"
+
+
+def test_a_full_disk_is_one_line_exit_1_and_leaves_nothing(case_file, tmp_path, capsys, monkeypatch):
+    """The disk fills while the slice files (export) or the GIF (animate) are written: one line
+    naming the filesystem and the output, exit 1, no partial folder or file left."""
+    import errno
+
+    import pyevtk.hl
+    from matplotlib.animation import PillowWriter
+
+    def no_space(*args, **kw):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pyevtk.hl, "gridToVTK", no_space)
+    monkeypatch.setattr(PillowWriter, "finish", no_space)
+    for command, out in ((["export", str(case_file), "--out"], tmp_path / "vtk"),
+                         (["animate", str(case_file), "--out"], tmp_path / "grains.gif")):
+        assert main([*command, str(out)]) == 1
+        from engine.output import filesystem
+        mount, kind = filesystem(tmp_path)
+        assert capsys.readouterr().err.splitlines() == [f"plugsim: error: no space left on {mount} ({kind}) writing {out}"]
+    assert not list(tmp_path.iterdir()), "no partial output"

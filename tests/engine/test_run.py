@@ -327,6 +327,33 @@ def test_warm_start_from_a_different_tube_is_refused_before_any_step(tmp_path):
     assert not (tmp_path / "x.nc").exists()
 
 
+def test_a_warm_start_across_orientation_or_tube_length_needs_warm_start_any(tmp_path):
+    """Horizontal 2.1 cm -> vertical 1 cm: refused (exit 2, one line naming both keys, their values
+    and run.warm_start_any) before any step; with run.warm_start_any=true it runs and logs one line
+    with the grains kept and dropped."""
+    source, out = tmp_path / "source.nc", tmp_path / "x.nc"
+    run_case(Case.from_yaml(CASE, SHORT[:-4]), source)
+    other = ["gas.enabled=false", "tube.length=0.01", "tube.inclination_deg=90", "run.duration=0.02"]
+    args = ["run", str(CASE), "--out", str(out), "--initial-state", str(source), *sum((["--set", s] for s in other), [])]
+    res = plugsim(*args)
+    assert res.returncode == 2 and res.stderr.strip().splitlines() == [
+        f"plugsim: error: initial state {source}: tube.inclination_deg = 0 there, 90 here (degree); "
+        "tube.length = 0.021 there, 0.01 here (m); a warm start across tube length or inclination drops "
+        "grains or turns gravity: --set run.warm_start_any=true accepts it"]
+    assert not out.exists()
+    res = plugsim(*args, "--set", "run.warm_start_any=true")
+    assert res.returncode == 0, res.stderr
+    with xr.open_dataset(source) as a, xr.open_dataset(out) as b:
+        total = a.sizes["final_grain"]
+        kept = int((a.final_position.values[:, 0] <= 0.01).sum())
+        assert 0 < kept < total and b.attrs["initial_particles"] == kept
+    changes = [line for line in res.stderr.splitlines() if "dropped" in line]
+    assert changes == [f"plugsim: warm start from {source}: tube.inclination_deg = 0 there, 90 here (degree); "
+                       f"tube.length = 0.021 there, 0.01 here (m): {kept} of {total} grains kept, "
+                       f"{total - kept} beyond x = 0.01 m dropped"]
+    assert "run.warm_start_any" in plugsim("keys").stdout
+
+
 def test_progress_is_logged_when_there_is_no_terminal(caplog):
     """A workflow job (quiet, stderr to a file) logs progress lines at the wall-time interval."""
     from types import SimpleNamespace

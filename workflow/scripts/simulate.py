@@ -27,7 +27,11 @@ def main(smk) -> None:
     initial_state = smk.input.get("initial_state")
     if initial_state:
         log.info("warm start from %s", initial_state)
-    run_case(case, smk.output.case, quiet=True, initial_state=initial_state, threads=threads)
+    # Snakemake decides when a case is (re)made (missing, --forcerun, changed params or engine
+    # source) and removes the old file before the job; overwrite=True so that a file still there
+    # (a remote executor's copy, a job run by hand) can never turn such a rerun into a refusal.
+    # A checkpoint of the same case still resumes.
+    run_case(case, smk.output.case, quiet=True, initial_state=initial_state, threads=threads, overwrite=True)
     log.info("wrote %s in %.1f s wall", smk.output.case, time.perf_counter() - start)
 
 
