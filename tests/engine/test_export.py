@@ -261,13 +261,14 @@ def test_a_full_disk_is_one_line_exit_1_and_leaves_nothing(case_file, tmp_path, 
     naming the filesystem and the output, exit 1, no partial folder or file left."""
     import errno
 
-    import pyevtk.hl
     from matplotlib.animation import PillowWriter
+
+    import engine.export
 
     def no_space(*args, **kw):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(pyevtk.hl, "gridToVTK", no_space)
+    monkeypatch.setattr(engine.export, "_write_slices", no_space)
     monkeypatch.setattr(PillowWriter, "finish", no_space)
     for command, out in ((["export", str(case_file), "--out"], tmp_path / "vtk"),
                          (["animate", str(case_file), "--out"], tmp_path / "grains.gif")):

@@ -340,12 +340,13 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     assert (work / "results/benchmarks/timings.csv").exists()
     restitution = pd.read_csv(work / "results/benchmarks/restitution/restitution.csv", keep_default_na=False)
     assert set(restitution["contact"]) == {"grain-grain", "grain-wall"} and not restitution["refused"].any()
-    # the model-identification stage, reduced: two readings on the two default cases
+    # the model-identification stage, reduced: three readings (one at a time) on the two default cases
     ident = snakemake("identification", "--cores", "2", "--configfile", "config/ci.yaml",
                       "config/identification.yaml", "config/identification_ci.yaml", cwd=work, timeout=900)
     assert ident.returncode == 0, ident.stderr[-5000:]
     table = pd.read_csv(work / "results/identification/identification.csv", comment="#")
-    assert table["reading"].nunique() == 2 and len(table) == 2 * 5
+    assert table["reading"].nunique() == 3 and len(table) == 3 * 5
+    assert table["reading"].str.contains("scheme=split, theta=0.5").any()
     assert set(table["within"]) <= {"yes", "no", "no (blocked)", "not available"}
     assert imread(work / "results/identification/identification.png").ndim == 3
     report = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
