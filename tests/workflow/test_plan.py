@@ -188,6 +188,40 @@ def test_a_statement_on_an_undeclared_sweep_reads_nothing_and_is_not_pending():
     assert plan.validation_inputs() == []
 
 
+def test_a_partial_validation_reads_only_what_this_configuration_produced(tmp_path, monkeypatch):
+    """A case file counts when it records the planned case and what derives from it is newer;
+    a case of other parameters (another configuration's results) is pending, never an input."""
+    import os
+
+    import netCDF4
+
+    monkeypatch.chdir(tmp_path)
+    statements = [{"id": "S1", "measure": "pressure_drop", "case": {"sweep": "h_default"}}]
+    sweeps = {"h_default": single()}
+    plan = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}), statements)
+    case, summary = Path(paths.case_file("h_default", "base")), Path(paths.summary_json("h_default", "base"))
+    for path in (case, summary):
+        path.parent.mkdir(parents=True)
+    summary.write_text("{}")
+
+    def write_case(recorded):
+        with netCDF4.Dataset(case, "w") as ds:
+            ds.setncattr("config_yaml", recorded.to_yaml())
+        os.utime(summary, (case.stat().st_mtime + 1,) * 2)
+
+    write_case(plan.cases[("h_default", "base")])
+    [item] = plan.validation_statements()
+    assert item["files"] == {"summaries": [str(summary)]} and item["pending"] is False
+    assert plan.validation_inputs() == []  # read through params: Snakemake is never asked for them
+
+    other = Plan(config({"h_default": single(**{"tube.length": 0.1})},
+                        validation={"statements": "s.yaml", "partial": True}), statements)
+    write_case(other.cases[("h_default", "base")])
+    [item] = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}),
+                  statements).validation_statements()
+    assert item["files"] == {} and "was run with other parameters" in item["pending"]
+
+
 def test_work_precision_refuses_a_reference_that_is_no_point():
     wp = {"benchmarks": {"work_precision": {"h_vs": {"reference": 3.0}}}}
     with pytest.raises(PlanError, match=r"work_precision.h_vs.reference: sweep 'h_vs' has 0 points"):

@@ -91,6 +91,45 @@ def test_partial_validation_reports_what_is_not_run_yet_without_running_it(tmp_p
     assert "Partial validation" in (work / "results/validation/validation.md").read_text()
 
 
+def _job_counts(output: str) -> dict[str, int]:
+    """rule -> job count from the table a dry run prints ("Job stats:")."""
+    table = output.split("Job stats:", 1)[-1] if "Job stats:" in output else ""
+    return {m[0]: int(m[1]) for m in re.findall(r"^(\w+)\s+(\d+)$", table, flags=re.MULTILINE)
+            if m[0] != "total"}
+
+
+def test_partial_validation_never_plans_a_case_over_another_configurations_results(tmp_path):
+    """config/partial.yaml over a results/ of another configuration (case files of other parameters,
+    older than the base YAMLs they came from, summaries, curves and figures of theirs): `validation
+    reference` plans no case and no analysis, and reports those cases as not run yet."""
+    import os
+
+    work = scratch(tmp_path)
+    old = time.time() - 30 * 86400
+    fake = {"results/cases/h_default/base.nc": "not the paper's case",
+            "results/cases/h_vs/gas.superficial_velocity~4_feed.mass_flow_kg_h~2.49.nc": "x",
+            "results/summaries/h_default/base.json": json.dumps({"pressure_drop": 1.0}),
+            "results/slugs/h_default/base.csv": "t,x\n",
+            "results/curves/h_vs.csv": "a\n1\n", "results/curves/h_vs.png": "png",
+            "results/figures/H01.png": "png", "results/figures/H01.txt": "caption"}
+    for name, text in fake.items():
+        path = work / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        os.utime(path, (old, old))
+    run = snakemake("-n", "validation", "reference", "--cores", "1", "--configfile",
+                    "config/partial.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    jobs = _job_counts(run.stdout + run.stderr)
+    assert set(jobs) <= {"validation", "reference"}, jobs
+    run = snakemake("validation", "--cores", "1", "--configfile", "config/partial.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    import pandas as pd
+
+    table = pd.read_csv(work / "results/validation/validation.csv")
+    assert table["note"].str.startswith("not run yet").all()
+
+
 def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
     """A sweep over a key the papers never swept (the restitution of a horizontal tube), added as
     YAML only, expands to one case per point and reaches a curve."""

@@ -40,6 +40,10 @@ def case_nc_of(wildcards):
 
 
 def simulate_inputs(wildcards):
+    if PLAN.partial:  # a second guard: partial validation never asks for a case (validation.smk)
+        raise ValueError("config validation.partial (config/partial.yaml) only tabulates what exists "
+                         f"and runs no case; asked for results/cases/{wildcards.sweep}/"
+                         f"{wildcards.point}.nc: name the targets `validation reference`")
     return PLAN.simulate_inputs(*wc_key(wildcards))
 
 
