@@ -157,9 +157,25 @@ def test_a_figure_that_cannot_be_drawn_is_refused(figure, message):
         Plan(config({"h_vs": curve([1.5, 2.0])}, {"H02": figure}))
 
 
-def test_an_unknown_case_key_is_refused_naming_the_sweep_and_point():
+def test_an_unknown_case_key_is_refused_naming_the_sweep_and_entry():
     sweeps = {"h_vs": curve([1.5], overrides={"gas.viscosty": 1e-5})}
-    with pytest.raises(PlanError, match=r"sweep 'h_vs', point 'gas.superficial_velocity~1.5': .*gas.viscosty"):
+    with pytest.raises(PlanError, match=r"sweep 'h_vs': overrides: unknown case key 'gas.viscosty' "
+                                        r"\(did you mean 'gas.viscosity'\?\)"):
+        Plan(config(sweeps))
+
+
+def test_a_misspelt_same_as_source_gets_a_suggestion():
+    sweeps = {"h_mu": {"base": H, "parameters": {"particles.friction": [0.1]},
+                       "same_as": {"wall.friction": "particles.fricton"}}}
+    with pytest.raises(PlanError, match=r"same_as.wall.friction: unknown case key 'particles.fricton' "
+                                        r"\(did you mean 'particles.friction'\?\)"):
+        Plan(config(sweeps))
+
+
+def test_a_same_as_source_that_is_no_parameter_names_the_closest_parameter():
+    sweeps = {"h_mu": {"base": H, "parameters": {"particles.friction": [0.1]},
+                       "same_as": {"particles.restitution": "wall.friction"}}}
+    with pytest.raises(PlanError, match=r"'wall.friction' is not one of its parameters"):
         Plan(config(sweeps))
 
 

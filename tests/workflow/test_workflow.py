@@ -257,6 +257,58 @@ def test_schema_refuses_an_unknown_config_key(tmp_path):
     assert "positon" in run.stderr + run.stdout
 
 
+SWEEP = {"base": "config/cases/horizontal.yaml", "parameters": {"particles.restitution": [0.3, 0.9]}}
+
+
+@pytest.mark.parametrize("sweep, message", [
+    ({**SWEEP, "parameters": {"particles.restitution": []}},
+     "sweep 'h_rest': parameters.particles.restitution: empty list; give at least 1 value"),
+    ({**SWEEP, "overides": {"run.duration": 5.0}},
+     "sweep 'h_rest': unknown key 'overides' (did you mean 'overrides'?); allowed keys: description, "
+     "base, overrides,"),
+    ({**SWEEP, "parameters": {"particles.restitutoin": [0.3]},
+      "same_as": {"wall.restitution": "particles.restitution"}},
+     "sweep 'h_rest': parameters: unknown case key 'particles.restitutoin' (did you mean "
+     "'particles.restitution'?)"),
+    ({**SWEEP, "same_as": {"wall.restitution": "particles.restitutoin"}},
+     "sweep 'h_rest': same_as.wall.restitution: unknown case key 'particles.restitutoin' (did you "
+     "mean 'particles.restitution'?)"),
+    ({k: v for k, v in SWEEP.items() if k != "base"}, "sweep 'h_rest': missing key 'base'"),
+])
+def test_a_bad_sweep_is_refused_in_one_line_naming_the_fix(tmp_path, sweep, message):
+    work = scratch(tmp_path)
+    (work / "config/bad.yaml").write_text(yaml.safe_dump({"sweeps": {"h_rest": sweep}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
+    assert run.returncode == 2
+    errors = [line for line in (run.stderr + run.stdout).splitlines()
+              if line and not line.startswith("Config file config/config.yaml is extended")]
+    assert len(errors) == 1 and errors[0].startswith("Error: config: "), errors
+    assert message in errors[0]
+
+
+@pytest.mark.parametrize("name, text, where", [
+    ("config/config.yaml", "sweeps:\n  h_default: {base: x\n  v_default: {}\n", "config/config.yaml:3:"),
+    ("resources/paper_statements.yaml", "- id: S1\n  measure: [trend\n", "resources/paper_statements.yaml:3:"),
+])
+def test_a_yaml_syntax_error_names_its_file_and_line(tmp_path, name, text, where):
+    work = scratch(tmp_path)
+    (work / name).write_text(text)
+    run = snakemake("-n", "--cores", "1", cwd=work)
+    assert run.returncode == 2
+    assert f"Error: {where}" in run.stderr and "YAML syntax error" in run.stderr, run.stderr
+
+
+def test_config_check_gives_the_line_of_a_configfile_syntax_error(tmp_path):
+    """A --configfile Snakemake reads before the workflow (its message has no line):
+    workflow/scripts/config_check.py names it."""
+    bad = tmp_path / "my.yaml"
+    bad.write_text("sweeps:\n  h_rest:\n    parameters: {particles.restitution: [0.3]\n    base: x\n")
+    run = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/config_check.py"),
+                          "config/config.yaml", str(bad)], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stderr.strip().startswith(f"{bad}:4:5: YAML syntax error"), run.stderr
+
+
 def test_bad_point_reference_is_refused(tmp_path):
     work = scratch(tmp_path)
     (work / "config/bad.yaml").write_text(yaml.safe_dump({"figures": {"H04": {

@@ -5,11 +5,10 @@
 import sys
 from pathlib import Path
 
-import yaml
-
 sys.path.insert(0, str(Path(workflow.basedir) / "workflow" / "scripts"))
 import captions  # noqa: E402  (workflow/scripts/captions.py)
 import plan as paths  # noqa: E402  (workflow/scripts/plan.py: the file names)
+from config_check import ConfigError, load_yaml, refuse  # noqa: E402
 from plan import Plan, PlanError  # noqa: E402
 
 
@@ -21,10 +20,9 @@ wildcard_constraints:
 
 _statements_path = (config.get("validation") or {}).get("statements")
 try:
-    PLAN = Plan(config, yaml.safe_load(Path(_statements_path).read_text()) if _statements_path else [],
-                _statements_path)
-except PlanError as err:
-    raise ValueError(str(err)) from None
+    PLAN = Plan(config, load_yaml(_statements_path) if _statements_path else [], _statements_path)
+except (PlanError, ConfigError) as err:
+    refuse(err)  # one line, before any job
 
 # The rerun key of the jobs that run the engine: any change to its source reruns them.
 ENGINE_SOURCE = paths.source_digest(Path(workflow.basedir) / "engine")

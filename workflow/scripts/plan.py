@@ -20,7 +20,7 @@ import yaml
 import sweeps as sw
 from figure_kinds import KINDS, kind_of
 
-from engine.case import Case, CaseError
+from engine.case import KEYS, Case, CaseError
 
 Key = tuple[str, str]  # (sweep, point)
 
@@ -100,10 +100,27 @@ def source_digest(folder: str | Path) -> str:
 
 # ---- steps of the plan --------------------------------------------------------------------------
 
+def check_case_keys(sweep: str, spec: Mapping) -> None:
+    """Every case key a sweep names is an engine key (PlanError naming the entry, with a
+    suggestion), checked before `same_as` or `warm_start_from_next` look a parameter up."""
+    named = [("overrides", k) for k in spec.get("overrides") or {}]
+    for name, values in (spec.get("parameters") or {}).items():
+        named.append(("parameters", name))
+        named += [(f"parameters.{name}", k) for v in values if isinstance(v, Mapping) for k in v]
+    for target, source in (spec.get("same_as") or {}).items():
+        named += [("same_as", target), (f"same_as.{target}", source)]
+    named += [("warm_start_from_next", k) for k in spec.get("warm_start_from_next") or {}]
+    for entry, key in named:
+        if key not in KEYS:
+            raise PlanError(f"config: sweep {sweep!r}: {entry}: unknown case key {key!r}"
+                            f"{sw.did_you_mean(key, KEYS)}; `plugsim keys` lists all keys")
+
+
 def expand_sweeps(sweeps: Mapping[str, Mapping]) -> dict[str, dict[str, dict]]:
     """sweep -> {point name -> the point's overrides}."""
     points = {}
     for name, spec in sweeps.items():
+        check_case_keys(name, spec)
         try:
             points[name] = sw.expand(name, spec)
         except sw.SweepError as err:
