@@ -39,6 +39,14 @@ validate(config, "workflow/schemas/config.schema.yaml")
 report: "workflow/report/workflow.rst"
 
 
+onstart:
+    # SIGINT/SIGTERM to snakemake reach the running cases, which checkpoint and stop
+    # (workflow/scripts/running.py); Snakemake alone would wait for them to finish
+    import running
+
+    running.forward_signals()
+
+
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/detect.smk"
