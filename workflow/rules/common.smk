@@ -24,6 +24,14 @@ try:
 except (PlanError, ConfigError) as err:
     refuse(err)  # one line, before any job
 
+# `snakemake --report` labels and bundles what results/ holds with this configuration's banner and
+# captions: refuse when the case files there are another configuration's (e.g. the CI run's
+# without --configfile config/ci.yaml). Snakemake tells the Snakefile nothing of a report, hence argv.
+if any(a == "--report" or a.startswith("--report=") for a in sys.argv) and "--report-after-run" not in sys.argv:
+    if _other := PLAN.other_configuration():
+        refuse(ConfigError(f"report: {_other}; give the --configfile(s) of the run that made them "
+                           "(after a CI run: --configfile config/ci.yaml)"))
+
 # The rerun key of the jobs that run the engine: any change to its source reruns them.
 ENGINE_SOURCE = paths.source_digest(Path(workflow.basedir) / "engine")
 

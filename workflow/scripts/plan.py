@@ -401,24 +401,55 @@ class Plan:
             return {}
         return files
 
+    def recorded_case(self, key: Key) -> dict | None:
+        """The case the case file of `key` records ({section: {name: value}}), None when there is
+        no complete case file."""
+        path = self.case_nc(*key)
+        if not Path(path).is_file():
+            return None
+        try:
+            import netCDF4
+            with netCDF4.Dataset(path) as ds:
+                return yaml.safe_load(ds.getncattr("config_yaml"))
+        except Exception:  # noqa: BLE001 - unreadable or no attribute: not a complete case file
+            return None
+
+    def case_differences(self, key: Key) -> list[str]:
+        """'key = value there, value here' for each key where the case file of `key` differs from
+        the planned case ([] when it is the planned case or there is no case file)."""
+        recorded = self.recorded_case(key)
+        if recorded is None:
+            return []
+        there = {f"{s}.{k}": v for s, values in recorded.items() for k, v in values.items()}
+        here = {k: v for k, v in self.cases[key].items()}
+        # the physical keys first: they tell a reduced run from the paper's
+        order = sorted(set(there) | set(here), key=lambda k: (k.startswith(("output.", "run.")), k))
+        return [f"{k} = {there.get(k, '(absent)')} there, {here.get(k, '(absent)')} here"
+                for k in order if there.get(k) != here.get(k)]
+
     def case_status(self, key: Key) -> str | None:
         """None when the case file of `key` exists and was run with the planned case, else why not."""
         if key not in self._status:
             path = self.case_nc(*key)
-            self._status[key] = None
             if not Path(path).is_file():
                 self._status[key] = f"{path} is not produced"
+            elif self.recorded_case(key) is None:
+                self._status[key] = f"{path} is not a complete case file"
+            elif self.case_differences(key):
+                self._status[key] = f"{path} was run with other parameters"
             else:
-                try:
-                    import netCDF4
-                    with netCDF4.Dataset(path) as ds:
-                        recorded = yaml.safe_load(ds.getncattr("config_yaml"))
-                except Exception:  # noqa: BLE001 - any unreadable file is "not this run's"
-                    self._status[key] = f"{path} is not a complete case file"
-                else:
-                    if recorded != yaml.safe_load(self.cases[key].to_yaml()):
-                        self._status[key] = f"{path} was run with other parameters"
+                self._status[key] = None
         return self._status[key]
+
+    def other_configuration(self) -> str | None:
+        """One line when a case file in results/ was run with other parameters than this
+        configuration plans (the results are another configuration's), else None."""
+        for key in sorted(set(self.canonical.values())):
+            if differences := self.case_differences(key):
+                more = f" and {len(differences) - 2} more" if len(differences) > 2 else ""
+                return (f"{self.case_nc(*key)} was run with other parameters than this configuration "
+                        f"plans ({'; '.join(differences[:2])}{more})")
+        return None
 
     def not_current(self, files: list[str], sources: list[Key]) -> str | None:
         """Why `files` (derived from the cases `sources`) are not this configuration's products yet:
