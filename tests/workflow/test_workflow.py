@@ -274,6 +274,12 @@ SWEEP = {"base": "config/cases/horizontal.yaml", "parameters": {"particles.resti
      "sweep 'h_rest': same_as.wall.restitution: unknown case key 'particles.restitutoin' (did you "
      "mean 'particles.restitution'?)"),
     ({k: v for k, v in SWEEP.items() if k != "base"}, "sweep 'h_rest': missing key 'base'"),
+    ({**SWEEP, "parameters": {"particles.restitution": 0.5}},
+     "sweep 'h_rest': parameters.particles.restitution: 0.5 is not a list; give a list of values, "
+     "e.g. [0.5]"),
+    ({**SWEEP, "warm_start_from_next": {"particles.restitutoin": [0.3]}},
+     "sweep 'h_rest': warm_start_from_next: unknown case key 'particles.restitutoin' (did you mean "
+     "'particles.restitution'?)"),
 ])
 def test_a_bad_sweep_is_refused_in_one_line_naming_the_fix(tmp_path, sweep, message):
     work = scratch(tmp_path)

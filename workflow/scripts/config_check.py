@@ -64,6 +64,8 @@ def describe(error) -> str:
         return f"{at}: empty; give at least {error.validator_value} entry"
     if error.validator == "pattern":  # a sweep name or a case key
         return f"{at}: {instance!r} is not a valid name (pattern {error.validator_value})"
+    if error.validator == "type" and error.validator_value == "array" and not isinstance(instance, list):
+        return f"{at}: {instance!r} is not a list; give a list of values, e.g. [{instance!r}]"
     if error.validator == "enum":
         return (f"{at}: {instance!r} is not allowed{suggest(str(instance), map(str, error.validator_value))}; "
                 f"allowed: {', '.join(map(str, error.validator_value))}")

@@ -12,10 +12,16 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 from contextlib import contextmanager
 from pathlib import Path
 
-REGISTRY = Path(".snakemake/plugsim-running-cases")  # one file per running case, named by its pid
+REGISTRY = Path(".snakemake/plugsim-running-cases")  # one file per running case: <host>-<pid>
+
+
+def entry_name(pid: int) -> str:
+    """A case's entry: the host too, since cluster jobs on other nodes share the directory."""
+    return f"{socket.gethostname()}-{pid}"
 
 
 @contextmanager
@@ -26,7 +32,7 @@ def registered(case_file: str):
     except OSError:  # already a group leader (e.g. started by a shell with job control)
         pass
     REGISTRY.mkdir(parents=True, exist_ok=True)
-    entry = REGISTRY / str(os.getpid())
+    entry = REGISTRY / entry_name(os.getpid())
     entry.write_text(case_file)
     try:
         yield
@@ -37,9 +43,13 @@ def registered(case_file: str):
 def running_cases() -> dict[int, str]:
     """pid -> case file of every registered case whose process still runs a simulate job."""
     out = {}
+    host = socket.gethostname()
     for entry in REGISTRY.glob("*") if REGISTRY.is_dir() else []:
+        name, _, pid = entry.name.rpartition("-")
+        if name != host:
+            continue
         try:
-            pid = int(entry.name)
+            pid = int(pid)
             cmdline = Path(f"/proc/{pid}/cmdline").read_bytes() if Path("/proc").is_dir() else b"simulate"
         except (ValueError, OSError):  # not a pid, or the process is gone (a stale entry)
             entry.unlink(missing_ok=True)

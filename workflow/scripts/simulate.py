@@ -10,7 +10,7 @@ import time
 from contextlib import nullcontext
 
 from _helpers import Standalone, setup_logging, snakemake_or_cli
-from running import REGISTRY, registered
+from running import REGISTRY, entry_name, registered
 
 
 def stopped(log, err, out: str):
@@ -25,7 +25,7 @@ def stopped(log, err, out: str):
                     err.checkpoint)
     for handler in log.root.handlers:
         handler.flush()
-    (REGISTRY / str(os.getpid())).unlink(missing_ok=True)
+    (REGISTRY / entry_name(os.getpid())).unlink(missing_ok=True)
     os._exit(128 + err.signum)  # also from inside a signal handler (numba's compiler may swallow a raise)
 
 
