@@ -450,6 +450,10 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     html = (work / "report.html").read_text(errors="replace")
     assert "validation.csv" in html and "H01.png" in html
     assert "Reduced run" in html and "Paper run" not in html  # the CI config shortens every case
+    assert "Missing metadata" not in report.stderr  # every file of the report's jobs was made here
+    # without the run's configfile the report is refused, naming it, instead of "Paper run"
+    wrong = snakemake("--report", "report.html", cwd=work)
+    assert wrong.returncode == 2 and "--configfile config/ci.yaml" in wrong.stderr, wrong.stderr[-3000:]
     # the committed reference copy is regenerated from the same outputs
     # the target first: --configfile takes several values
     ref = snakemake("reference", "--cores", "1", "--configfile", "config/ci.yaml", cwd=work)
