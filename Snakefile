@@ -8,18 +8,43 @@
 # Rules live in workflow/rules/ (one file per stage), thin scripts in workflow/scripts/; see
 # docs/workflow.md.
 
+import sys
+
 from snakemake.utils import min_version, validate
 
 min_version("9.0")
+sys.path.insert(0, f"{workflow.basedir}/workflow/scripts")
+from config_check import ConfigError, check_schema, load_yaml, refuse  # noqa: E402
+
+
+# Snakemake's own loader names no line for a YAML syntax error: read the workflow's config first
+try:
+    load_yaml("config/config.yaml")
+except ConfigError as err:
+    refuse(err)
 
 
 configfile: "config/config.yaml"
 
 
+# one line naming the entry and the fix (jsonschema's own message is a dump of the schema);
+# validate() then fills the schema's defaults
+try:
+    check_schema(config, f"{workflow.basedir}/workflow/schemas/config.schema.yaml")
+except ConfigError as err:
+    refuse(err)
 validate(config, "workflow/schemas/config.schema.yaml")
 
 
 report: "workflow/report/workflow.rst"
+
+
+onstart:
+    # SIGINT/SIGTERM to snakemake reach the running cases, which checkpoint and stop
+    # (workflow/scripts/running.py); Snakemake alone would wait for them to finish
+    import running
+
+    running.forward_signals()
 
 
 include: "workflow/rules/common.smk"

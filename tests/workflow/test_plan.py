@@ -188,9 +188,25 @@ def test_a_figure_that_cannot_be_drawn_is_refused(figure, message):
         Plan(config({"h_vs": curve([1.5, 2.0])}, {"H02": figure}))
 
 
-def test_an_unknown_case_key_is_refused_naming_the_sweep_and_point():
+def test_an_unknown_case_key_is_refused_naming_the_sweep_and_entry():
     sweeps = {"h_vs": curve([1.5], overrides={"gas.viscosty": 1e-5})}
-    with pytest.raises(PlanError, match=r"sweep 'h_vs', point 'gas.superficial_velocity~1.5': .*gas.viscosty"):
+    with pytest.raises(PlanError, match=r"sweep 'h_vs': overrides: unknown case key 'gas.viscosty' "
+                                        r"\(did you mean 'gas.viscosity'\?\)"):
+        Plan(config(sweeps))
+
+
+def test_a_misspelt_same_as_source_gets_a_suggestion():
+    sweeps = {"h_mu": {"base": H, "parameters": {"particles.friction": [0.1]},
+                       "same_as": {"wall.friction": "particles.fricton"}}}
+    with pytest.raises(PlanError, match=r"same_as.wall.friction: unknown case key 'particles.fricton' "
+                                        r"\(did you mean 'particles.friction'\?\)"):
+        Plan(config(sweeps))
+
+
+def test_a_same_as_source_that_is_no_parameter_names_the_closest_parameter():
+    sweeps = {"h_mu": {"base": H, "parameters": {"particles.friction": [0.1]},
+                       "same_as": {"particles.restitution": "wall.friction"}}}
+    with pytest.raises(PlanError, match=r"'wall.friction' is not one of its parameters"):
         Plan(config(sweeps))
 
 
@@ -227,6 +243,40 @@ def test_a_statement_on_an_undeclared_sweep_reads_nothing_and_is_not_pending():
     for item in plan.validation_statements():
         assert item["files"] == {} and item["pending"] is False
     assert plan.validation_inputs() == []
+
+
+def test_a_partial_validation_reads_only_what_this_configuration_produced(tmp_path, monkeypatch):
+    """A case file counts when it records the planned case and what derives from it is newer;
+    a case of other parameters (another configuration's results) is pending, never an input."""
+    import os
+
+    import netCDF4
+
+    monkeypatch.chdir(tmp_path)
+    statements = [{"id": "S1", "measure": "pressure_drop", "case": {"sweep": "h_default"}}]
+    sweeps = {"h_default": single()}
+    plan = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}), statements)
+    case, summary = Path(paths.case_file("h_default", "base")), Path(paths.summary_json("h_default", "base"))
+    for path in (case, summary):
+        path.parent.mkdir(parents=True)
+    summary.write_text("{}")
+
+    def write_case(recorded):
+        with netCDF4.Dataset(case, "w") as ds:
+            ds.setncattr("config_yaml", recorded.to_yaml())
+        os.utime(summary, (case.stat().st_mtime + 1,) * 2)
+
+    write_case(plan.cases[("h_default", "base")])
+    [item] = plan.validation_statements()
+    assert item["files"] == {"summaries": [str(summary)]} and item["pending"] is False
+    assert plan.validation_inputs() == []  # read through params: Snakemake is never asked for them
+
+    other = Plan(config({"h_default": single(**{"tube.length": 0.1})},
+                        validation={"statements": "s.yaml", "partial": True}), statements)
+    write_case(other.cases[("h_default", "base")])
+    [item] = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}),
+                  statements).validation_statements()
+    assert item["files"] == {} and "was run with other parameters" in item["pending"]
 
 
 def test_work_precision_refuses_a_reference_that_is_no_point():

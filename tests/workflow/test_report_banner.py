@@ -47,3 +47,42 @@ def test_no_all_cases_at_all_is_the_paper_run():
     config = merged("config.yaml")
     config.pop("all_cases")
     assert "Paper run" in banner(config)
+
+
+def test_the_report_refuses_results_of_another_configuration(tmp_path):
+    """`snakemake --report` with the paper configuration over a CI run's case files: one line naming
+    the file, the differing keys and the configfile to give, before any report is made."""
+    import sys
+
+    import netCDF4
+
+    from tests.workflow.test_workflow import scratch, snakemake
+
+    sys.path.append(str(ROOT / "workflow" / "scripts"))
+    from plan import Plan
+
+    work = scratch(tmp_path)
+
+    def plan(*names):
+        config = merged(*names)
+        path = ROOT / config["validation"]["statements"]
+        return Plan(config, yaml.safe_load(path.read_text()))
+
+    paper, ci = plan("config.yaml"), plan("config.yaml", "ci.yaml")
+    # a case file both configurations write (same sweep and point name), as the CI run wrote it
+    name = next(ci.case_nc(*k) for k in ci.all_points()
+                if k in paper.canonical and paper.case_nc(*k) == ci.case_nc(*k))
+    path = work / name
+    path.parent.mkdir(parents=True)
+    with netCDF4.Dataset(path, "w") as ds:
+        ds.setncattr("config_yaml", ci.cases[ci.canonical[ci.key(*Path(name).with_suffix("").parts[-2:])]]
+                     .to_yaml())
+    run = snakemake("--report", "report.html", cwd=work)
+    assert run.returncode == 2 and not (work / "report.html").exists()
+    [line] = [x for x in run.stderr.splitlines() if x.startswith("Error:")]
+    assert line.startswith(f"Error: report: {name} was run with other parameters than this "
+                           "configuration plans (")
+    assert "tube.length = 0.1 there, 0.525 here" in line and "--configfile config/ci.yaml" in line
+    run = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
+    # the right configfile passes this check (the report then needs every figure, absent here)
+    assert "Error: report:" not in run.stderr

@@ -91,6 +91,45 @@ def test_partial_validation_reports_what_is_not_run_yet_without_running_it(tmp_p
     assert "Partial validation" in (work / "results/validation/validation.md").read_text()
 
 
+def _job_counts(output: str) -> dict[str, int]:
+    """rule -> job count from the table a dry run prints ("Job stats:")."""
+    table = output.split("Job stats:", 1)[-1] if "Job stats:" in output else ""
+    return {m[0]: int(m[1]) for m in re.findall(r"^(\w+)\s+(\d+)$", table, flags=re.MULTILINE)
+            if m[0] != "total"}
+
+
+def test_partial_validation_never_plans_a_case_over_another_configurations_results(tmp_path):
+    """config/partial.yaml over a results/ of another configuration (case files of other parameters,
+    older than the base YAMLs they came from, summaries, curves and figures of theirs): `validation
+    reference` plans no case and no analysis, and reports those cases as not run yet."""
+    import os
+
+    work = scratch(tmp_path)
+    old = time.time() - 30 * 86400
+    fake = {"results/cases/h_default/base.nc": "not the paper's case",
+            "results/cases/h_vs/gas.superficial_velocity~4_feed.mass_flow_kg_h~2.49.nc": "x",
+            "results/summaries/h_default/base.json": json.dumps({"pressure_drop": 1.0}),
+            "results/slugs/h_default/base.csv": "t,x\n",
+            "results/curves/h_vs.csv": "a\n1\n", "results/curves/h_vs.png": "png",
+            "results/figures/H01.png": "png", "results/figures/H01.txt": "caption"}
+    for name, text in fake.items():
+        path = work / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        os.utime(path, (old, old))
+    run = snakemake("-n", "validation", "reference", "--cores", "1", "--configfile",
+                    "config/partial.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    jobs = _job_counts(run.stdout + run.stderr)
+    assert set(jobs) <= {"validation", "reference"}, jobs
+    run = snakemake("validation", "--cores", "1", "--configfile", "config/partial.yaml", cwd=work)
+    assert run.returncode == 0, run.stderr[-3000:]
+    import pandas as pd
+
+    table = pd.read_csv(work / "results/validation/validation.csv")
+    assert table["note"].str.startswith("not run yet").all()
+
+
 def test_new_sweep_written_as_yaml_reaches_a_curve(tmp_path):
     """A sweep over a key the papers never swept (the restitution of a horizontal tube), added as
     YAML only, expands to one case per point and reaches a curve."""
@@ -216,6 +255,64 @@ def test_schema_refuses_an_unknown_config_key(tmp_path):
     run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
     assert run.returncode != 0
     assert "positon" in run.stderr + run.stdout
+
+
+SWEEP = {"base": "config/cases/horizontal.yaml", "parameters": {"particles.restitution": [0.3, 0.9]}}
+
+
+@pytest.mark.parametrize("sweep, message", [
+    ({**SWEEP, "parameters": {"particles.restitution": []}},
+     "sweep 'h_rest': parameters.particles.restitution: empty list; give at least 1 value"),
+    ({**SWEEP, "overides": {"run.duration": 5.0}},
+     "sweep 'h_rest': unknown key 'overides' (did you mean 'overrides'?); allowed keys: description, "
+     "base, overrides,"),
+    ({**SWEEP, "parameters": {"particles.restitutoin": [0.3]},
+      "same_as": {"wall.restitution": "particles.restitution"}},
+     "sweep 'h_rest': parameters: unknown case key 'particles.restitutoin' (did you mean "
+     "'particles.restitution'?)"),
+    ({**SWEEP, "same_as": {"wall.restitution": "particles.restitutoin"}},
+     "sweep 'h_rest': same_as.wall.restitution: unknown case key 'particles.restitutoin' (did you "
+     "mean 'particles.restitution'?)"),
+    ({k: v for k, v in SWEEP.items() if k != "base"}, "sweep 'h_rest': missing key 'base'"),
+    ({**SWEEP, "parameters": {"particles.restitution": 0.5}},
+     "sweep 'h_rest': parameters.particles.restitution: 0.5 is not a list; give a list of values, "
+     "e.g. [0.5]"),
+    ({**SWEEP, "warm_start_from_next": {"particles.restitutoin": [0.3]}},
+     "sweep 'h_rest': warm_start_from_next: unknown case key 'particles.restitutoin' (did you mean "
+     "'particles.restitution'?)"),
+])
+def test_a_bad_sweep_is_refused_in_one_line_naming_the_fix(tmp_path, sweep, message):
+    work = scratch(tmp_path)
+    (work / "config/bad.yaml").write_text(yaml.safe_dump({"sweeps": {"h_rest": sweep}}))
+    run = snakemake("-n", "--cores", "1", "--configfile", "config/bad.yaml", cwd=work)
+    assert run.returncode == 2
+    errors = [line for line in (run.stderr + run.stdout).splitlines()
+              if line and not line.startswith("Config file config/config.yaml is extended")]
+    assert len(errors) == 1 and errors[0].startswith("Error: config: "), errors
+    assert message in errors[0]
+
+
+@pytest.mark.parametrize("name, text, where", [
+    ("config/config.yaml", "sweeps:\n  h_default: {base: x\n  v_default: {}\n", "config/config.yaml:3:"),
+    ("resources/paper_statements.yaml", "- id: S1\n  measure: [trend\n", "resources/paper_statements.yaml:3:"),
+])
+def test_a_yaml_syntax_error_names_its_file_and_line(tmp_path, name, text, where):
+    work = scratch(tmp_path)
+    (work / name).write_text(text)
+    run = snakemake("-n", "--cores", "1", cwd=work)
+    assert run.returncode == 2
+    assert f"Error: {where}" in run.stderr and "YAML syntax error" in run.stderr, run.stderr
+
+
+def test_config_check_gives_the_line_of_a_configfile_syntax_error(tmp_path):
+    """A --configfile Snakemake reads before the workflow (its message has no line):
+    workflow/scripts/config_check.py names it."""
+    bad = tmp_path / "my.yaml"
+    bad.write_text("sweeps:\n  h_rest:\n    parameters: {particles.restitution: [0.3]\n    base: x\n")
+    run = subprocess.run([sys.executable, str(ROOT / "workflow/scripts/config_check.py"),
+                          "config/config.yaml", str(bad)], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stderr.strip().startswith(f"{bad}:4:5: YAML syntax error"), run.stderr
 
 
 def test_bad_point_reference_is_refused(tmp_path):
@@ -354,6 +451,10 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     html = (work / "report.html").read_text(errors="replace")
     assert "validation.csv" in html and "H01.png" in html
     assert "Reduced run" in html and "Paper run" not in html  # the CI config shortens every case
+    assert "Missing metadata" not in report.stderr  # every file of the report's jobs was made here
+    # without the run's configfile the report is refused, naming it, instead of "Paper run"
+    wrong = snakemake("--report", "report.html", cwd=work)
+    assert wrong.returncode == 2 and "--configfile config/ci.yaml" in wrong.stderr, wrong.stderr[-3000:]
     # the committed reference copy is regenerated from the same outputs
     # the target first: --configfile takes several values
     ref = snakemake("reference", "--cores", "1", "--configfile", "config/ci.yaml", cwd=work)

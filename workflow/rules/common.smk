@@ -5,11 +5,10 @@
 import sys
 from pathlib import Path
 
-import yaml
-
 sys.path.insert(0, str(Path(workflow.basedir) / "workflow" / "scripts"))
 import captions  # noqa: E402  (workflow/scripts/captions.py)
 import plan as paths  # noqa: E402  (workflow/scripts/plan.py: the file names)
+from config_check import ConfigError, load_yaml, refuse  # noqa: E402
 from plan import Plan, PlanError  # noqa: E402
 
 
@@ -21,10 +20,17 @@ wildcard_constraints:
 
 _statements_path = (config.get("validation") or {}).get("statements")
 try:
-    PLAN = Plan(config, yaml.safe_load(Path(_statements_path).read_text()) if _statements_path else [],
-                _statements_path)
-except PlanError as err:
-    raise ValueError(str(err)) from None
+    PLAN = Plan(config, load_yaml(_statements_path) if _statements_path else [], _statements_path)
+except (PlanError, ConfigError) as err:
+    refuse(err)  # one line, before any job
+
+# `snakemake --report` labels and bundles what results/ holds with this configuration's banner and
+# captions: refuse when the case files there are another configuration's (e.g. the CI run's
+# without --configfile config/ci.yaml). Snakemake tells the Snakefile nothing of a report, hence argv.
+if any(a == "--report" or a.startswith("--report=") for a in sys.argv) and "--report-after-run" not in sys.argv:
+    if _other := PLAN.other_configuration():
+        refuse(ConfigError(f"report: {_other}; give the --configfile(s) of the run that made them "
+                           "(after a CI run: --configfile config/ci.yaml)"))
 
 # The rerun key of the jobs that run the engine: any change to its source reruns them.
 ENGINE_SOURCE = paths.source_digest(Path(workflow.basedir) / "engine")
@@ -40,6 +46,10 @@ def case_nc_of(wildcards):
 
 
 def simulate_inputs(wildcards):
+    if PLAN.partial:  # a second guard: partial validation never asks for a case (validation.smk)
+        raise ValueError("config validation.partial (config/partial.yaml) only tabulates what exists "
+                         f"and runs no case; asked for results/cases/{wildcards.sweep}/"
+                         f"{wildcards.point}.nc: name the targets `validation reference`")
     return PLAN.simulate_inputs(*wc_key(wildcards))
 
 

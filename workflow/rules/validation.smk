@@ -15,6 +15,7 @@ rule validation:
         position=config["analysis"]["position"],
         all_cases=config.get("all_cases") or {},
         partial=PLAN.partial,
+        read=PLAN.partial_fingerprint(),  # partial: rerun when a file it reads appears or changes
     log:
         "logs/validation/validation.log",
     benchmark:
@@ -31,13 +32,13 @@ rule reference:
     """Copy what a reader needs to see the result without rerunning (figure PNGs and captions, sweep
     curves, the validation table) to docs/reference/paper/, for committing. Not part of `all`:
     `snakemake -j2 reference` after a run of the paper configuration (with config/partial.yaml:
-    only what exists, for a run done in parts)."""
+    only what this configuration has already produced, for a run done in parts)."""
     input:
-        figures=PLAN.existing_if_partial([f for fig in PLAN.figures for f in paths.figure_files(fig)
-                                          if not f.endswith(".pdf")]),
-        curves=PLAN.existing_if_partial([f for s in PLAN.curve_sweeps() if not s.startswith("wp_")
-                                         for f in (paths.curve_csv(s), paths.curve_png(s))]),
+        # a partial validation copies what is current (params), never asking for a product
+        unpack(lambda wc: {} if PLAN.partial else PLAN.reference_files()),
         validation=[paths.VALIDATION_CSV, "results/validation/validation.md"],
+    params:
+        partial_files=PLAN.reference_files() if PLAN.partial else {},
     output:
         directory("docs/reference/paper"),
     log:

@@ -15,10 +15,12 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any, Mapping
 
+import yaml
+
 import sweeps as sw
 from figure_kinds import KINDS, kind_of
 
-from engine.case import Case, CaseError
+from engine.case import KEYS, Case, CaseError
 
 Key = tuple[str, str]  # (sweep, point)
 
@@ -98,10 +100,27 @@ def source_digest(folder: str | Path) -> str:
 
 # ---- steps of the plan --------------------------------------------------------------------------
 
+def check_case_keys(sweep: str, spec: Mapping) -> None:
+    """Every case key a sweep names is an engine key (PlanError naming the entry, with a
+    suggestion), checked before `same_as` or `warm_start_from_next` look a parameter up."""
+    named = [("overrides", k) for k in spec.get("overrides") or {}]
+    for name, values in (spec.get("parameters") or {}).items():
+        named.append(("parameters", name))
+        named += [(f"parameters.{name}", k) for v in values if isinstance(v, Mapping) for k in v]
+    for target, source in (spec.get("same_as") or {}).items():
+        named += [("same_as", target), (f"same_as.{target}", source)]
+    named += [("warm_start_from_next", k) for k in spec.get("warm_start_from_next") or {}]
+    for entry, key in named:
+        if key not in KEYS:
+            raise PlanError(f"config: sweep {sweep!r}: {entry}: unknown case key {key!r}"
+                            f"{sw.did_you_mean(key, KEYS)}; `plugsim keys` lists all keys")
+
+
 def expand_sweeps(sweeps: Mapping[str, Mapping]) -> dict[str, dict[str, dict]]:
     """sweep -> {point name -> the point's overrides}."""
     points = {}
     for name, spec in sweeps.items():
+        check_case_keys(name, spec)
         try:
             points[name] = sw.expand(name, spec)
         except sw.SweepError as err:
@@ -249,6 +268,7 @@ class Plan:
         self.statements = statement_cases(statements or [], self.points, statements_source)
         self.needs = consumer_needs(self.points, self.figures, self.statements)
         self._bases: dict[str, Case] = {}
+        self._status: dict[Key, str | None] = {}  # partial validation: case_status, once per case
         self.warm_source = warm_sources(self.sweeps, self.points)
         self.overrides: dict[Key, dict] = {}  # every override of a case, derived ones included
         self.canonical: dict[Key, Key] = {}   # the case whose file a point reads
@@ -365,21 +385,115 @@ class Plan:
 
     # -- validation statements --
 
+    def statement_sources(self, st: Mapping) -> list[Key]:
+        """The cases a statement's files derive from: its cases, or every point of its sweep."""
+        if st.get("sweep"):
+            return [(st["sweep"], p) for p in self.points[st["sweep"]]]
+        return [c for c in st["_cases"] if c is not None]
+
     def statement_files(self, st: Mapping) -> dict[str, Any]:
         """Files a statement's measure reads, by name; {} when its cases are not in this config, or
-        in a partial validation when they are not produced yet."""
+        in a partial validation when they are not produced by this configuration yet."""
         if not in_config(st):
             return {}
         files = measure_files(st["measure"], st["_cases"], st.get("sweep"))
-        if self.partial and not all(Path(f).exists() for f in flat(files)):
+        if self.partial and self.not_current(flat(files), self.statement_sources(st)):
             return {}
         return files
 
-    def existing_if_partial(self, files: list[str]) -> list[str]:
-        """All files, or in a partial validation only those already produced."""
-        return [f for f in files if Path(f).exists()] if self.partial else files
+    def recorded_case(self, key: Key) -> dict | None:
+        """The case the case file of `key` records ({section: {name: value}}), None when there is
+        no complete case file."""
+        path = self.case_nc(*key)
+        if not Path(path).is_file():
+            return None
+        try:
+            import netCDF4
+            with netCDF4.Dataset(path) as ds:
+                return yaml.safe_load(ds.getncattr("config_yaml"))
+        except Exception:  # noqa: BLE001 - unreadable or no attribute: not a complete case file
+            return None
+
+    def case_differences(self, key: Key) -> list[str]:
+        """'key = value there, value here' for each key where the case file of `key` differs from
+        the planned case ([] when it is the planned case or there is no case file)."""
+        recorded = self.recorded_case(key)
+        if recorded is None:
+            return []
+        there = {f"{s}.{k}": v for s, values in recorded.items() for k, v in values.items()}
+        here = {k: v for k, v in self.cases[key].items()}
+        # the physical keys first: they tell a reduced run from the paper's
+        order = sorted(set(there) | set(here), key=lambda k: (k.startswith(("output.", "run.")), k))
+        return [f"{k} = {there.get(k, '(absent)')} there, {here.get(k, '(absent)')} here"
+                for k in order if there.get(k) != here.get(k)]
+
+    def case_status(self, key: Key) -> str | None:
+        """None when the case file of `key` exists and was run with the planned case, else why not."""
+        if key not in self._status:
+            path = self.case_nc(*key)
+            if not Path(path).is_file():
+                self._status[key] = f"{path} is not produced"
+            elif self.recorded_case(key) is None:
+                self._status[key] = f"{path} is not a complete case file"
+            elif self.case_differences(key):
+                self._status[key] = f"{path} was run with other parameters"
+            else:
+                self._status[key] = None
+        return self._status[key]
+
+    def other_configuration(self) -> str | None:
+        """One line when a case file in results/ was run with other parameters than this
+        configuration plans (the results are another configuration's), else None."""
+        for key in sorted(set(self.canonical.values())):
+            if differences := self.case_differences(key):
+                more = f" and {len(differences) - 2} more" if len(differences) > 2 else ""
+                return (f"{self.case_nc(*key)} was run with other parameters than this configuration "
+                        f"plans ({'; '.join(differences[:2])}{more})")
+        return None
+
+    def not_current(self, files: list[str], sources: list[Key]) -> str | None:
+        """Why `files` (derived from the cases `sources`) are not this configuration's products yet:
+        a file is missing, a case file is missing or from other parameters, or a file is older than
+        a case file it derives from. None when they are current."""
+        for key in sources:
+            if why := self.case_status(key):
+                return why
+        for f in files:
+            if not Path(f).is_file():
+                return f"{f} is not produced"
+        newest_case = max((Path(self.case_nc(*k)).stat().st_mtime for k in sources), default=0.0)
+        for f in files:
+            if f.endswith(".nc") and f.startswith("results/cases/"):
+                continue
+            if Path(f).stat().st_mtime < newest_case:
+                return f"{f} is older than its case file"
+        return None
+
+    def partial_files(self, files: list[str], sources: list[Key]) -> list[str]:
+        """In a partial validation, `files` when current (not_current), else none."""
+        return [] if self.not_current(files, sources) else files
+
+    def reference_files(self) -> dict[str, list[str]]:
+        """The figure PNGs and captions and the curves `rule reference` copies; in a partial
+        validation only those current."""
+        figures, curves = [], []
+        for fig in self.figures:
+            files = [f for f in figure_files(fig) if not f.endswith(".pdf")]
+            sources = self.figure_cases(fig) + [(s, p) for s in self.figure_sweeps(fig)
+                                                for p in self.points[s]]
+            figures += self.partial_files(files, sources) if self.partial else files
+        for s in self.curve_sweeps():
+            if not s.startswith("wp_"):
+                files = [curve_csv(s), curve_png(s)]
+                sources = [(s, p) for p in self.points[s]]
+                curves += self.partial_files(files, sources) if self.partial else files
+        return {"figures": figures, "curves": curves}
 
     def validation_inputs(self) -> list[str]:
+        """The files the validation reads, as job inputs: none in a partial validation (it reads
+        what exists and never makes Snakemake produce or update anything)."""
+        if self.partial:
+            return []
         return sorted({f for st in self.statements for f in flat(self.statement_files(st))})
 
     def validation_statements(self) -> list[dict]:
@@ -388,11 +502,24 @@ class Plan:
         for st in self.statements:
             item = {k: v for k, v in st.items() if not k.startswith("_")}
             item["files"] = self.statement_files(st)
-            # partial validation: declared here but not produced yet
-            item["pending"] = self.partial and in_config(st) and not item["files"]
+            # partial validation: declared here but not produced by this configuration yet
+            item["pending"] = False
+            if self.partial and in_config(st) and not item["files"]:
+                item["pending"] = self.not_current(
+                    flat(measure_files(st["measure"], st["_cases"], st.get("sweep"))),
+                    self.statement_sources(st)) or True
             item["case_names"] = ["{}/{}".format(*c) if c else None for c in st["_cases"]]
             out.append(item)
         return out
+
+    def partial_fingerprint(self) -> dict[str, int]:
+        """Partial validation: every file it reads with its modification time (ns), a parameter of
+        the validation job so that it reruns when a file appears or changes; {} otherwise."""
+        if not self.partial:
+            return {}
+        files = {f for st in self.statements for f in flat(self.statement_files(st))}
+        files |= {f for group in self.reference_files().values() for f in group}
+        return {f: Path(f).stat().st_mtime_ns for f in sorted(files)}
 
     # -- model identification --
 

@@ -18,7 +18,7 @@ def main(smk) -> None:
     for group in ("figures", "curves", "validation"):
         target = out if group == "validation" else out / group
         target.mkdir(parents=True, exist_ok=True)
-        files = smk.input.get(group, [])
+        files = smk.input.get(group) or (smk.params.get("partial_files") or {}).get(group, [])
         for f in [files] if isinstance(files, str) else files:
             shutil.copy2(f, target)
     size = sum(p.stat().st_size for p in out.rglob("*") if p.is_file())

@@ -17,6 +17,7 @@ Precedence of the overrides of a case, later wins:
 
 from __future__ import annotations
 
+import difflib
 import itertools
 import math
 from typing import Any, Iterable, Mapping
@@ -36,6 +37,12 @@ def format_value(value: Any) -> str:
         text = format(value, ".12g")
         return text
     return str(value).replace("/", "-").replace(" ", "-")
+
+
+def did_you_mean(word: str, candidates) -> str:
+    """' (did you mean 'x'?)' for the closest candidate, or ''."""
+    close = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _levels(name: str, values: Any, sweep: str) -> list[dict[str, Any]]:
@@ -72,7 +79,7 @@ def expand(sweep: str, spec: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
     for target, source in same_as.items():
         if source not in names:
             raise SweepError(f"sweep {sweep!r}: same_as {target!r}: {source!r} is not one of its "
-                             f"parameters {names}")
+                             f"parameters{did_you_mean(source, names)}: {names}")
     points: dict[str, dict[str, Any]] = {}
     for combo in _combinations(sweep, spec, names, [_levels(n, parameters[n], sweep) for n in names]):
         values: dict[str, Any] = {}
@@ -145,7 +152,7 @@ def next_point_sources(sweep: str, spec: Mapping[str, Any],
     for name, values in (spec.get("warm_start_from_next") or {}).items():
         if name not in parameters:
             raise SweepError(f"sweep {sweep!r}: warm_start_from_next: {name!r} is not one of its "
-                             f"parameters {list(parameters)}")
+                             f"parameters{did_you_mean(name, parameters)}: {list(parameters)}")
         levels = [level[name] for level in _levels(name, parameters[name], sweep)]
         for value in values:
             index = next((i for i, level in enumerate(levels) if _equal(level, value)), None)

@@ -333,8 +333,10 @@ def _compare(st, ctx) -> dict:
            "ours": NAN, "ours_error": NAN, "error_kind": "", "ratio": NAN, "within": "",
            "note": "", "figure": " ".join(_figures(st))}
     if not st.get("files"):
-        why = ("not run yet (partial validation: its case or curve is not produced)" if st.get("pending")
-               else "the case or sweep is not in this configuration")
+        pending = st.get("pending")
+        why = ("the case or sweep is not in this configuration" if not pending
+               else f"not run yet (partial validation: {pending})" if isinstance(pending, str)
+               else "not run yet (partial validation: its case or curve is not produced)")
         row.update(within="not available", note=why)
         return row
     try:
