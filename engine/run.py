@@ -29,6 +29,12 @@ from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 log = logging.getLogger("plugsim")
 
 MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
+# A wedge's over-compression is still there at the end of the frame in which it passed the bound:
+# contacts at least this fraction of MAX_OVERLAP deep (a collision's overlap lasts one contact time).
+PERSISTENT = 0.5
+# A contact closing slower than this fraction of omega delta (omega = sqrt(k_n/m)) carries less
+# than 1 % of its spring's energy as approach: it is pressed, not struck.
+QUASI_STATIC = 0.1
 
 
 class RunError(RuntimeError):
@@ -369,7 +375,9 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
         for _ in range(len(recorder.times) - 1, frames if window is None else 0):
             sim.advance(interval)
             recorder.sample(sim)
-            _check_health(sim)
+            wedged = _check_health(sim, recorder.series["piston_force"][-1])
+            if wedged:
+                raise wedged
             sim.reset_max_overlap()  # the frame's largest overlap is recorded and checked
             progress.update(sim, interval)
             signals.armed = True
@@ -441,10 +449,52 @@ def _steady_attributes(window: SteadyWindow | None) -> dict:
             "steady_outflow": window.outflow.mean, "steady_inflow": window.inflow.mean}
 
 
-def _check_health(sim: Simulation) -> None:
+def _check_health(sim: Simulation, piston_force: float = math.nan) -> FeedBlocked | None:
+    """Raise RunError if the state is broken (a non-finite pressure drop, an overlap beyond
+    MAX_OVERLAP d since the last reset); an overlap beyond it that is the enforced feed wedging a
+    column (feed_wedged) is returned as FeedBlocked instead, with `piston_force` (N, the mean over
+    the frame) and the gas force in its message."""
     d = 2 * sim.model.radius
     if not math.isfinite(sim.pressure_drop):
         raise RunError(f"the pressure drop became non-finite at t = {sim.time:.4f} s")
-    if sim.max_overlap > MAX_OVERLAP * d:
-        raise RunError(f"grain overlap {sim.max_overlap / d:.2f} d exceeds the bound {MAX_OVERLAP} d at "
-                       f"t = {sim.time:.4f} s: the time step or stiffness is unsuitable for this case")
+    if sim.max_overlap <= MAX_OVERLAP * d:
+        return None
+    if feed_wedged(sim):
+        return FeedBlocked(
+            f"the tube is blocked at t = {sim.time:.4f} s: the enforced feed pressed the column it pushes "
+            f"to an overlap of {sim.max_overlap / d:.2f} d, beyond the bound {MAX_OVERLAP} d (piston "
+            f"force {piston_force:.2f} N, gas force on the grains {sim.gas_force:.3f} N, "
+            f"{sim.n_particles} grains)")
+    raise RunError(f"grain overlap {sim.max_overlap / d:.2f} d exceeds the bound {MAX_OVERLAP} d at "
+                   f"t = {sim.time:.4f} s: the time step or stiffness is unsuitable for this case")
+
+
+def feed_wedged(sim: Simulation) -> bool:
+    """Whether the overlap beyond the run guard in the frame just ended is the enforced feed
+    wedging a column the gas and walls hold, not a step or stiffness too coarse for a collision.
+
+    Judged at the frame's end (docs/decisions/0020-wedged-column-is-blocked.md): the
+    over-compression is still there (contacts at least PERSISTENT x MAX_OVERLAP d deep; a
+    collision's overlap lasts one contact time, ~0.1 ms of a 10 ms frame), it is quasi-static
+    (each such contact closes slower than QUASI_STATIC omega delta; a blown-up column vibrates at
+    the contact frequency) and it hangs on the piston (each such contact's grain touches, through
+    a chain of touching grains, a feed grain or a grain on the inlet wall, which holds the column
+    between two feed layers)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    c = sim.contacts()
+    deep = c["overlap"] >= PERSISTENT * MAX_OVERLAP * 2 * sim.model.radius
+    if not deep.any():
+        return False
+    omega = math.sqrt(sim.model.stiffness / sim.model.mass)
+    if np.any(np.abs(c["closing"][deep]) >= QUASI_STATIC * omega * c["overlap"][deep]):
+        return False
+    pair = c["j"] >= 0
+    n = len(c["in_feed"])
+    graph = coo_matrix((np.ones(pair.sum()), (c["i"][pair], c["j"][pair])), shape=(n, n))
+    label = connected_components(graph, directed=False)[1]
+    held = np.zeros(n, dtype=bool)
+    held[c["in_feed"]] = True
+    held[c["i"][c["inlet"]]] = True
+    return bool(np.isin(label[c["i"][deep]], label[held]).all())
