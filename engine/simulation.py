@@ -351,6 +351,12 @@ class Simulation:
         or the last reset_max_overlap(), m."""
         return float(self._diag[:params.DIAG_RUNNING_MAX + 1].max())
 
+    @property
+    def overlap(self) -> float:
+        """Largest overlap (grain-grain, grain-wall or grain-feed) at the current positions (the
+        last force evaluation), m."""
+        return float(max(self._diag[params.DIAG_OVERLAP], self._diag[params.DIAG_FEED_OVERLAP]))
+
     def reset_max_overlap(self) -> None:
         """Start a new window for max_overlap (run_case: every output frame)."""
         self._diag[params.DIAG_RUNNING_MAX] = 0.0
