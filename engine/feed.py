@@ -5,7 +5,8 @@ a random angle; layers follow each other at the spacing s that makes the mass fl
 m_dot = N_layer m u_in / s. Feed grains move kinematically and are released into the dynamics once
 fully inside the tube (centre at x >= r). The piston never pauses: the mass flow is enforced, as
 in the papers; its push on the grains is recorded (piston_force), and a tube that cannot take the
-feed (the piston presses a grain by more than feed.max_overlap) ends the run as blocked.
+feed (the piston presses a grain by more than feed.max_overlap, or the column it pushes passes the
+run guard's overlap, engine.run.feed_wedged) ends the run as blocked.
 """
 
 from __future__ import annotations

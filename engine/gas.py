@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from .case import KEYS
 from .kernels import gas as K
 
 QUADRATURE_POINTS = 200_001  # angular midpoint points of the cross-section quadrature
@@ -113,13 +114,15 @@ class GasField:
     in the papers), particle_volume (m3; default pi d^3/6), feed_volume_rate (m3/s, m_dot/rho_s of
     the feed), face ("harmonic" or "arithmetic" mean of the nodes' kappa on a face), deposit
     ("tube": porosity from the node's tube volume; "cell": from the grid cell hx hy hz), scheme
-    ("unsplit" or "split", used by couple; `step` takes `split`).
+    ("unsplit" or "split", used by couple; `step` takes `split`). face, deposit and scheme default
+    to the case keys' defaults (gas.face_permeability, gas.deposit_volume, gas.scheme).
     """
 
     def __init__(self, length=0.525, diameter=7e-3, particle_diameter=1.4e-3, viscosity=6.73e-5,
                  pressure=101325.0, superficial_velocity=1.0, nodes=(150, 2, 2), theta=1.0,
                  phi_min=0.2, phi_max=PHI_MAX, outlet="open", particle_volume=None,
-                 feed_volume_rate=0.0, face="harmonic", deposit="tube", scheme="unsplit"):
+                 feed_volume_rate=0.0, face=KEYS["gas.face_permeability"].default,
+                 deposit=KEYS["gas.deposit_volume"].default, scheme=KEYS["gas.scheme"].default):
         nx, ny, nz = (int(v) for v in nodes)
         _check(nx >= 2 and ny >= 1 and nz >= 1, "nodes", nodes, "nx >= 2, ny >= 1, nz >= 1")
         for name, value in (("length", length), ("diameter", diameter),

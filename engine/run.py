@@ -29,6 +29,13 @@ from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 log = logging.getLogger("plugsim")
 
 MAX_OVERLAP = 0.2  # fraction of d: beyond this the contact law (and the run) is meaningless
+# A wedge's over-compression builds up over frames: at the end of the frame before the one in which
+# it passed the bound, a contact was already this fraction of MAX_OVERLAP deep (a collision's
+# overlap comes and goes within one contact time, ~0.1 ms of a 10 ms frame).
+PERSISTENT = 0.5
+# A contact closing slower than this fraction of omega delta (omega = sqrt(k_n/m)) carries less
+# than 1 % of its spring's energy as approach: it is pressed, not struck.
+QUASI_STATIC = 0.1
 
 
 class RunError(RuntimeError):
@@ -477,13 +484,17 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     last_save = started = time.monotonic()
     cpu_started = time.process_time()
     reason, window = stop or ("duration", None)  # stop: the run had ended, its file not written
+    previous_overlap = sim.overlap  # at the end of the last frame: the wedge test's build-up
     if case["run.until_steady"] and resumed and not stop:  # a longer run continued: steady already?
         window = steady_window(recorder, case)
     try:
         for _ in range(len(recorder.times) - 1, frames if window is None and not stop else 0):
             sim.advance(interval)
             recorder.sample(sim)
-            _check_health(sim)
+            wedged = _check_health(sim, recorder.series["piston_force"][-1], previous_overlap)
+            if wedged:
+                raise wedged
+            previous_overlap = sim.overlap
             sim.reset_max_overlap()  # the frame's largest overlap is recorded and checked
             progress.update(sim, interval)
             signals.armed = True
@@ -498,7 +509,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                 _save_checkpoint(ckpt, sim, recorder, digest)
                 saved, last_save = sim.time, time.monotonic()
     except FeedBlocked as err:  # a result, not a failure: the file says so (stop_reason blocked)
-        _check_health(sim)  # unless the state is broken: then the run failed
+        _check_health(sim, previous_overlap=previous_overlap)  # unless the state is broken: a failure
         reason = "blocked"
         log.warning("case %s: %s; the run ends here", out.name, err)
     except SimulationError as err:
@@ -565,10 +576,57 @@ def _steady_attributes(window: SteadyWindow | None) -> dict:
             "steady_outflow": window.outflow.mean, "steady_inflow": window.inflow.mean}
 
 
-def _check_health(sim: Simulation) -> None:
+def _check_health(sim: Simulation, piston_force: float = math.nan,
+                  previous_overlap: float = 0.0) -> FeedBlocked | None:
+    """Raise RunError if the state is broken (a non-finite pressure drop, an overlap beyond
+    MAX_OVERLAP d since the last reset); an overlap beyond it that is the enforced feed wedging a
+    column (feed_wedged, given the largest overlap at the previous frame's end, m) is returned as
+    FeedBlocked instead, with `piston_force` (N, the mean over the frame) and the gas force in its
+    message."""
     d = 2 * sim.model.radius
     if not math.isfinite(sim.pressure_drop):
         raise RunError(f"the pressure drop became non-finite at t = {sim.time:.4f} s")
-    if sim.max_overlap > MAX_OVERLAP * d:
-        raise RunError(f"grain overlap {sim.max_overlap / d:.2f} d exceeds the bound {MAX_OVERLAP} d at "
-                       f"t = {sim.time:.4f} s: the time step or stiffness is unsuitable for this case")
+    if sim.max_overlap <= MAX_OVERLAP * d:
+        return None
+    if feed_wedged(sim, previous_overlap):
+        return FeedBlocked(
+            f"the tube is blocked at t = {sim.time:.4f} s: the enforced feed pressed the column it pushes "
+            f"to an overlap of {sim.max_overlap / d:.2f} d, beyond the bound {MAX_OVERLAP} d (piston "
+            f"force {piston_force:.2f} N, gas force on the grains {sim.gas_force:.3f} N, "
+            f"{sim.n_particles} grains)")
+    raise RunError(f"grain overlap {sim.max_overlap / d:.2f} d exceeds the bound {MAX_OVERLAP} d at "
+                   f"t = {sim.time:.4f} s: the time step or stiffness is unsuitable for this case")
+
+
+def feed_wedged(sim: Simulation, previous_overlap: float) -> bool:
+    """Whether the overlap beyond the run guard in the frame just ended is the enforced feed
+    wedging a column the gas and walls hold, not a step or stiffness too coarse for a collision
+    (docs/decisions/0020-wedged-column-is-blocked.md).
+
+    The over-compression built up: the largest overlap at the previous frame's end,
+    `previous_overlap` (m), was at least PERSISTENT x MAX_OVERLAP d. And at this frame's end each
+    contact at least that deep (none if the column has just slipped) is quasi-static (closes
+    slower than QUASI_STATIC omega delta; a blown-up column vibrates at the contact frequency) and
+    hangs on the piston (its grain touches, through a chain of touching grains, a feed grain or a
+    grain on the inlet wall, which holds the column between two feed layers)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    depth = PERSISTENT * MAX_OVERLAP * 2 * sim.model.radius
+    if previous_overlap < depth:
+        return False
+    c = sim.contacts()
+    deep = c["overlap"] >= depth
+    if not deep.any():
+        return True
+    omega = math.sqrt(sim.model.stiffness / sim.model.mass)
+    if np.any(np.abs(c["closing"][deep]) >= QUASI_STATIC * omega * c["overlap"][deep]):
+        return False
+    pair = c["j"] >= 0
+    n = len(c["in_feed"])
+    graph = coo_matrix((np.ones(pair.sum()), (c["i"][pair], c["j"][pair])), shape=(n, n))
+    label = connected_components(graph, directed=False)[1]
+    held = np.zeros(n, dtype=bool)
+    held[c["in_feed"]] = True
+    held[c["i"][c["inlet"]]] = True
+    return bool(np.isin(label[c["i"][deep]], label[held]).all())

@@ -351,6 +351,12 @@ class Simulation:
         or the last reset_max_overlap(), m."""
         return float(self._diag[:params.DIAG_RUNNING_MAX + 1].max())
 
+    @property
+    def overlap(self) -> float:
+        """Largest overlap (grain-grain, grain-wall or grain-feed) at the current positions (the
+        last force evaluation), m."""
+        return float(max(self._diag[params.DIAG_OVERLAP], self._diag[params.DIAG_FEED_OVERLAP]))
+
     def reset_max_overlap(self) -> None:
         """Start a new window for max_overlap (run_case: every output frame)."""
         self._diag[params.DIAG_RUNNING_MAX] = 0.0
@@ -390,6 +396,34 @@ class Simulation:
                 "wall_stress": acc[:, S.WALL] / (math.pi * self.case["tube.diameter"] * width),
                 "granular_temperature": np.maximum(temperature, 0.0)}
 
+    def contacts(self) -> dict[str, np.ndarray]:
+        """The touching contacts at the current positions: grain pairs (feed grains included) and
+        the dynamic grains' cylinder-wall and inlet-wall contacts. Arrays over contacts: `i`, `j`
+        (grain rows; j = -1 for a wall), `inlet` (an inlet-wall contact), `overlap` (m), `closing`
+        (normal approach speed, m/s); `in_feed` over the grain rows. For diagnosis (a Python pass
+        over a k-d tree), not the time loop."""
+        from scipy.spatial import cKDTree
+
+        n = int(self._n[0])
+        pos, vel, feed = self._pos[:n], self._vel[:n], self._in_feed[:n] == 1
+        r = self.model.radius
+        pairs = cKDTree(pos).query_pairs(2 * r, output_type="ndarray").reshape(-1, 2)
+        i, j = pairs[:, 0], pairs[:, 1]
+        gap = pos[j] - pos[i]
+        dist = np.linalg.norm(gap, axis=1)
+        closing = np.einsum("ij,ij->i", vel[i] - vel[j], gap / dist[:, None])
+        rho = np.hypot(pos[:, 1], pos[:, 2])
+        wall = np.flatnonzero(~feed & (rho > self.case["tube.diameter"] / 2 - r))
+        inlet = np.flatnonzero(~feed & (pos[:, 0] < r))
+        radial = (vel[wall, 1] * pos[wall, 1] + vel[wall, 2] * pos[wall, 2]) / rho[wall]
+        return {"i": np.concatenate([i, wall, inlet]),
+                "j": np.concatenate([j, np.full(len(wall) + len(inlet), -1)]),
+                "inlet": np.arange(len(i) + len(wall) + len(inlet)) >= len(i) + len(wall),
+                "overlap": np.concatenate([2 * r - dist, rho[wall] + r - self.case["tube.diameter"] / 2,
+                                           r - pos[inlet, 0]]),
+                "closing": np.concatenate([closing, radial, -vel[inlet, 0]]),
+                "in_feed": feed}
+
     @property
     def pressure_drop(self) -> float:
         """Gas pressure at the inlet face minus at the outlet face, Pa (0 while the gas is off)."""
@@ -407,6 +441,12 @@ class Simulation:
         gas = self.gas
         mean = (gas.pressure * gas.area).sum(axis=(1, 2)) / gas.area.sum()
         return np.interp((np.arange(nslices) + 0.5) * width, gas.x, mean)
+
+    @property
+    def gas_force(self) -> float:
+        """Axial gas drag on the grains in the tube, N (as applied in the last step)."""
+        n = int(self._n[0])
+        return float(self._drag[:n, 0][self._in_feed[:n] == 0].sum())
 
     def _drag_forces(self) -> np.ndarray:
         """Per-grain gas drag force (capacity x 3), N, as applied in the last step."""

@@ -11,6 +11,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from engine import gas
+from engine.case import Case
 from engine.kernels import gas as K
 
 EPS = np.finfo(float).eps
@@ -286,6 +287,16 @@ def test_plug_resistance_of_each_face_rule(face, cells_of_resistance):
     assert f.pressure_drop() == pytest.approx(expect, rel=1e-5)
 
 
+def test_a_bare_field_reads_eq5_as_a_case_does():
+    """GasField() without face/deposit/scheme discretises as the case defaults do (a bare field
+    in a test or study is the engine's model)."""
+    case = Case()
+    bare = gas.GasField()
+    assert bare.g[K.G_FACE_ARITHMETIC] == (case["gas.face_permeability"] == "arithmetic")
+    assert bare.g[K.G_CELL_VOLUME] == (case["gas.deposit_volume"] == "cell")
+    assert bare.g[K.G_SPLIT] == (case["gas.scheme"] == "split")
+
+
 def test_cell_deposit_reads_the_packing_over_the_whole_grid_cell():
     """gas.deposit_volume = cell: the same grains over hx hy hz instead of the node's tube share
     (pi R^2 / 4 of a 2 x 2 line): a tube packed at solid fraction 0.6 reads 0.6 pi / 4."""
@@ -371,11 +382,12 @@ def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
     assert np.abs(f.pressure - steady).max() > 0.3 * steady.max()
 
 
+@pytest.mark.parametrize("face, measured", [("harmonic", 1e-8), ("arithmetic", 1e-7)])
 @pytest.mark.parametrize("theta", [1.0, 0.5])
-def test_gas_content_is_conserved_with_balanced_fluxes(theta):
+def test_gas_content_is_conserved_with_balanced_fluxes(theta, face, measured):
     """Both ends at flux v_s A (papers' BC), grains still: sum phi V P' is invariant."""
     rng = np.random.default_rng(5)
-    f = gas.GasField(outlet="flux", superficial_velocity=2.0, theta=theta)
+    f = gas.GasField(outlet="flux", superficial_velocity=2.0, theta=theta, face=face)
     random_bed(f, rng)
     f.pressure[:] = rng.normal(size=f.nodes) * 100
     start = f.gas_content()
@@ -389,10 +401,11 @@ def test_gas_content_is_conserved_with_balanced_fluxes(theta):
     # stable solve leaves a residual ~EPS x (its largest row, ~ diffusion number x capacity) per
     # step; the residuals enter the content with random signs, so they grow like sqrt(steps).
     # Nearly empty nodes read kappa(phi_max): diffusion numbers ~1e9, a bound of ~4e-5; measured
-    # 4e-9 of the scale, so the content is kept to 8 digits over 1000 stiff steps.
+    # 4e-9 of the scale with harmonic faces, 6e-8 with arithmetic ones (a face next to a nearly
+    # empty node takes half its kappa, so more rows are stiff): 7 to 8 digits over 1000 stiff steps.
     bound = 4 * EPS * f.diffusion_number(1e-3) * math.sqrt(steps)
     assert worst < bound * scale
-    assert worst < 1e-8 * scale
+    assert worst < measured * scale
 
 
 def test_gas_budget_with_open_outlet_and_moving_grains():

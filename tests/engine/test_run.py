@@ -409,6 +409,45 @@ def test_a_blocked_tube_is_a_result_reported_as_blocked(tmp_path):
         assert ds.piston_force.values[-5:].mean() > 0
 
 
+def test_a_column_the_feed_wedges_beyond_the_run_guard_is_blocked(tmp_path):
+    # A column 100 times heavier than on Earth on soft contacts: at 0.85 s the piston lifts 418
+    # grains (weight 0.56 N, piston 0.59 N) and a grain just above the inlet is pressed 0.21 d into
+    # the wall by the column, while the piston's own contacts stay at 0.10 d: the feed's block test
+    # (feed.max_overlap) does not see it, the run guard does, and the over-compression is the
+    # feed's (pressed, still there at the frame's end, on the piston), not the step's.
+    case = Case().with_overrides(["gas.enabled=false", "tube.inclination_deg=90", "tube.length=0.03",
+                                  "physics.gravity=1000", "particles.stiffness=300",
+                                  "particles.tangential_damping=0.005", "run.duration=1"])
+    out = run_case(case, tmp_path / "wedged.nc")
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["stop_reason"] == "blocked"
+        assert float(ds.max_overlap[-1]) > 0.2  # the run guard's bound, not the feed's
+        assert float(ds.time[-1]) == ds.attrs["blocked_time"]
+        weight = float(ds.n_particles[-1]) * case["particles.density"] * math.pi / 6 * 0.0014**3 * 1000
+        assert float(ds.piston_force[-1]) > weight  # the piston carries the column
+
+
+def test_a_collision_the_step_cannot_resolve_still_fails_beside_a_pushed_column():
+    # Two grains meeting across the tube at 12 m/s beside the feed's column: at the largest step the
+    # engine accepts (0.47 t_c) they move 0.24 d into each other in one step, where the resolved
+    # collision (default step) peaks at 0.16 d: a time-step failure, not a blocked tube.
+    peaks = {}
+    for fraction in (0.47, 0.15):
+        case = Case().with_overrides(["gas.enabled=false", "tube.length=0.03", "numerics.time_step_safety=1",
+                                      f"numerics.time_step_fraction={fraction}"])
+        sim = Simulation(case)
+        d = 2 * sim.model.radius
+        sim.advance(0.2)
+        sim.reset_max_overlap()
+        sim.add_particles([[0.02, -0.505 * d, 0], [0.02, 0.505 * d, 0]], [[0, 6, 0], [0, -6, 0]])
+        sim.advance(case["output.interval"])
+        peaks[fraction] = sim.max_overlap / d
+        if fraction == 0.47:
+            with pytest.raises(RunError, match="time step or stiffness is unsuitable"):
+                _check_health(sim)
+    assert peaks[0.47] > 0.2 > peaks[0.15]
+
+
 def test_the_block_threshold_does_not_change_a_run_that_does_not_block(tmp_path):
     # feed.max_overlap only decides when a run ends as blocked: the piston never pauses, so a
     # run that never passes either threshold is bit-identical under both
