@@ -108,3 +108,15 @@ def test_markdown_counts_and_figure(tmp_path):
     identification.figure(df, tmp_path / "id.png")
     from matplotlib.image import imread
     assert imread(tmp_path / "id.png").ndim == 3
+
+
+def test_each_reading_has_its_effect_against_the_baseline_reading():
+    tables = {"s": readings_table([3300.0, 4700.0], ["plug", "plug"])}
+    baselines = {"s": {"gas.face_permeability": "arithmetic", "gas.scheme": "unsplit"}}
+    df = identification.table(STATEMENTS, tables, [{"statement": "DP", "sweep": "s"}], READINGS, baselines)
+    df = df.set_index("reading")
+    # harmonic 33 hPa/m against the arithmetic baseline's 47, each +- 0.5: -14 +- 0.71
+    assert df.loc["face_permeability=harmonic, scheme=unsplit", "effect"] == pytest.approx(-14.0)
+    assert df.loc["face_permeability=harmonic, scheme=unsplit", "effect_error"] == pytest.approx(0.5 * 2 ** 0.5)
+    assert df.loc["face_permeability=arithmetic, scheme=unsplit", "effect"] == 0.0
+    assert "-14 +- 0.71" in identification.markdown(df.reset_index())

@@ -320,3 +320,16 @@ def test_source_digest_follows_every_python_file_and_nothing_else(tmp_path):
     assert paths.source_digest(tmp_path) == first
     (tmp_path / "kernels" / "pair.py").write_text("K = 2\n")
     assert paths.source_digest(tmp_path) != first
+
+
+def test_the_identification_baseline_is_each_screened_sweeps_first_values():
+    statements = [{"id": "DP", "role": "training", "measure": "pressure_drop", "sweep": "id_h"}]
+    spec = {"base": H, "design": "one_at_a_time",
+            "parameters": {"gas.scheme": [{"gas.scheme": "unsplit", "gas.theta": 1.0},
+                                          {"gas.scheme": "split", "gas.theta": 0.5}],
+                           "particles.tangential_damping": [0.02, 0.005]}}
+    cfg = config({"id_h": spec, "h_vs": curve([1.0, 2.0])},
+                 identification={"readings": ["gas.scheme", "gas.theta", "particles.tangential_damping"],
+                                 "compare": [{"statement": "DP", "sweep": "id_h"}]})
+    assert Plan(cfg, statements).identification_baselines() == {
+        "id_h": {"gas.scheme": "unsplit", "gas.theta": 1.0, "particles.tangential_damping": 0.02}}

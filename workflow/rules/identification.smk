@@ -16,6 +16,7 @@ rule identification:
     params:
         compare=PLAN.identification.get("compare") or [],
         readings=PLAN.identification.get("readings") or [],
+        baselines=PLAN.identification_baselines(),
     log:
         "logs/identification/identification.log",
     benchmark:

@@ -8,7 +8,9 @@ pressure_drop, n_particles (steady means), regime (the case's label against `exp
 max_velocity (the papers' mean maximal granular velocity in a slug, per passage), travel_speed
 (the speed at which slugs and plugs travel; both without an error bar in the curve table) and
 argmax (the value of the statement's `x` with the largest pressure drop within the reading's
-points). A blocked case is "no (blocked)" whatever its numbers.
+points). A blocked case is "no (blocked)" whatever its numbers. In a one_at_a_time sweep each
+reading's effect is ours less the baseline reading's ours on the same statement, with the two
+standard errors combined (`baselines`: sweep -> its reading keys at their first values).
 
 Standalone:
     python workflow/scripts/identification.py --input statements=resources/paper_statements.yaml \
@@ -79,9 +81,21 @@ def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str
     return out
 
 
+def add_effects(rows: list[dict], baseline: str) -> None:
+    """effect = ours - the baseline reading's ours (same statement, same points), error combined."""
+    base = next((r for r in rows if r["reading"] == baseline), None)
+    for r in rows:
+        r["effect"], r["effect_error"] = NAN, NAN
+        if base is None or isinstance(r["ours"], str) or not math.isfinite(base["ours"]):
+            continue
+        r["effect"] = r["ours"] - base["ours"]
+        r["effect_error"] = math.hypot(r["ours_error"], base["ours_error"])
+
+
 def table(statements: list[dict], tables: dict[str, pd.DataFrame], compare: list[dict],
-          readings: list[str]) -> pd.DataFrame:
-    """The identification table: one row per (statement, reading)."""
+          readings: list[str], baselines: dict | None = None) -> pd.DataFrame:
+    """The identification table: one row per (statement, reading), with each reading's effect
+    against its sweep's baseline where the sweep has one."""
     by_id = {st["id"]: st for st in statements}
     rows = []
     for item in compare:
@@ -92,7 +106,11 @@ def table(statements: list[dict], tables: dict[str, pd.DataFrame], compare: list
             data = data[np.isclose(data[key], value)] if not isinstance(value, str) else data[data[key] == value]
         if data.empty:
             raise ValueError(f"identification: no row of sweep {item['sweep']} matches {item.get('where')}")
-        for result in compare_rows(st, data, readings, measure):
+        results = compare_rows(st, data, readings, measure)
+        baseline = (baselines or {}).get(item["sweep"])
+        if baseline is not None:
+            add_effects(results, reading_label(pd.Series(baseline), readings))
+        for result in results:
             rows.append({"id": st["id"], "statement": st["statement"], "sweep": item["sweep"],
                          "measure": measure, "paper_value": paper_text(st),
                          "unit": st.get("unit", ""), **result})
@@ -107,14 +125,24 @@ def markdown(df: pd.DataFrame) -> str:
              "| reading | within | of |", "|---|---|---|"]
     for reading, group in df.groupby("reading", sort=False):
         lines.append(f"| {reading} | {(group['within'] == 'yes').sum()} | {len(group)} |")
-    lines += ["", "| statement | reading | paper | ours | ratio | within |", "|---|---|---|---|---|---|"]
+    lines += ["", "| statement | reading | paper | ours | ratio | effect against the baseline | within |",
+              "|---|---|---|---|---|---|---|"]
     for _, r in df.iterrows():
         ours = r["ours"] if isinstance(r["ours"], str) else (
             f"{r['ours']:.3g} +- {r['ours_error']:.2g}" if math.isfinite(r["ours_error"]) else f"{r['ours']:.3g}")
         ratio = f"{r['ratio']:.2f}" if isinstance(r["ratio"], float) and math.isfinite(r["ratio"]) else ""
         lines.append(f"| {r['id']} | {r['reading']} | {r['paper_value']} | {ours} {r['unit'] if not isinstance(r['ours'], str) else ''} "
-                     f"| {ratio} | {r['within']} |")
+                     f"| {ratio} | {effect_text(r)} | {r['within']} |")
     return "\n".join(lines) + "\n"
+
+
+def effect_text(r) -> str:
+    """'+1.2 +- 0.3' (or '+1.2' without an error), '' without an effect."""
+    effect = r.get("effect", NAN)
+    if not isinstance(effect, float) or not math.isfinite(effect) or effect == 0.0:
+        return ""
+    error = r.get("effect_error", NAN)
+    return f"{effect:+.3g}" + (f" +- {error:.2g}" if math.isfinite(error) else "")
 
 
 def figure(df: pd.DataFrame, path) -> None:
@@ -135,11 +163,14 @@ def figure(df: pd.DataFrame, path) -> None:
             f"{r['ratio']:.2f}" if math.isfinite(r["ratio"]) else f"{r['ours']:.3g}")
         if r["within"] == "no (blocked)":
             text += " (blocked)"
+        if effect_text(r):
+            text += f"\n{effect_text(r)}"
         ax.text(j, i, text, ha="center", va="center", fontsize=8)
     ax.imshow(grid, cmap="RdYlGn", vmin=-0.3, vmax=1.3, aspect="auto")
     ax.set_xticks(range(len(readings)), [r.replace(", ", "\n") for r in readings], fontsize=7)
     ax.set_yticks(range(len(ids)), ids, fontsize=8)
-    ax.set_title("Each reading against the papers:\nours / paper (or our regime), green = within tolerance",
+    ax.set_title("Each reading against the papers: ours / paper (or our regime), green = within "
+                 "tolerance;\nbelow: the effect against the baseline reading, in the statement's unit",
                  fontsize=9)
     fig.tight_layout()
     fig.savefig(ensure_parent(path), dpi=120)
@@ -150,7 +181,8 @@ def main(smk) -> None:
     log = setup_logging(smk)
     statements = yaml.safe_load(Path(smk.input.statements).read_text())
     tables = {Path(p).stem: read_table(p) for p in smk.input.tables}
-    df = table(statements, tables, list(smk.params.compare), list(smk.params.readings))
+    df = table(statements, tables, list(smk.params.compare), list(smk.params.readings),
+               dict(smk.params.get("baselines") or {}))
     write_table(df, smk.output.csv)
     ensure_parent(smk.output.md).write_text(markdown(df))
     figure(df, smk.output.png)

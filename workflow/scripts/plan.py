@@ -540,6 +540,22 @@ class Plan:
                                 f"a test statement; only statements with role: training in "
                                 f"{statements_source} may choose a reading")
 
+    def identification_baselines(self) -> dict[str, dict]:
+        """Each one_at_a_time identification sweep's baseline: its reading keys at their first
+        values (the reading every other one is compared with)."""
+        readings = self.identification.get("readings") or []
+        out = {}
+        for sweep in {item["sweep"] for item in self.identification.get("compare") or []}:
+            spec = self.sweeps[sweep]
+            if spec.get("design", "full") != "one_at_a_time":
+                continue
+            first: dict = {}
+            for name, values in (spec.get("parameters") or {}).items():
+                level = values[0]
+                first.update(level if isinstance(level, dict) else {name: level})
+            out[sweep] = {key: first[key] for key in readings if key in first}
+        return out
+
     def identification_tables(self) -> list[str]:
         """The curve tables of the sweeps the identification compares."""
         return sorted({curve_csv(item["sweep"]) for item in self.identification.get("compare") or []})
