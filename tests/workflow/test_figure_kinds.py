@@ -11,8 +11,7 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
-# appended, not prepended: workflow/scripts/statistics.py must not shadow the standard library
-sys.path.append(str(ROOT / "workflow" / "scripts"))
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
 import figure  # noqa: E402
 from figure_kinds import DRAWS, KINDS, NEEDS  # noqa: E402
 

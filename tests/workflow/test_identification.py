@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.append(str(ROOT / "workflow" / "scripts"))  # appended: statistics.py must not shadow stdlib
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
 import identification  # noqa: E402
 
 READINGS = ["gas.face_permeability", "gas.scheme"]

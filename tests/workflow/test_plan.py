@@ -10,8 +10,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-# appended, not prepended: workflow/scripts/statistics.py must not shadow the standard library
-sys.path.append(str(ROOT / "workflow" / "scripts"))
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
 import plan as paths  # noqa: E402
 from plan import Plan, PlanError  # noqa: E402
 
@@ -333,3 +332,10 @@ def test_the_identification_baseline_is_each_screened_sweeps_first_values():
                                  "compare": [{"statement": "DP", "sweep": "id_h"}]})
     assert Plan(cfg, statements).identification_baselines() == {
         "id_h": {"gas.scheme": "unsplit", "gas.theta": 1.0, "particles.tangential_damping": 0.02}}
+
+
+def test_no_workflow_script_shadows_a_standard_library_module():
+    # the rules put workflow/scripts first on sys.path (common.smk): a script named like a
+    # standard-library module would replace it for every import in the workflow
+    names = {path.stem for path in (ROOT / "workflow" / "scripts").glob("*.py")}
+    assert not names & set(sys.stdlib_module_names)

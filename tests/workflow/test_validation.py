@@ -11,8 +11,7 @@ import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-# appended, not prepended: workflow/scripts/statistics.py must not shadow the standard library
-sys.path.append(str(ROOT / "workflow" / "scripts"))
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
 import validation  # noqa: E402
 from _helpers import write_table  # noqa: E402
 

@@ -45,4 +45,4 @@ rule statistics:
         runtime=10,
         mem_mb=1000,
     script:
-        "../scripts/statistics.py"
+        "../scripts/slug_statistics.py"

@@ -2,7 +2,7 @@
 (H8-H11, V9-V12), over the steady window of the case (from its summary).
 
 Standalone:
-    python workflow/scripts/statistics.py --input slugs=results/slugs/h_default/base.csv \
+    python workflow/scripts/slug_statistics.py --input slugs=results/slugs/h_default/base.csv \
         --input summary=results/summaries/h_default/base.json --output statistics=/tmp/stats.csv
 """
 
