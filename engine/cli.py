@@ -168,8 +168,11 @@ def _main(argv: list[str]) -> int:
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
     p.set_defaults(func=_check)
     p = sub.add_parser(
-        "run", help="run one case from an empty tube and write its NetCDF case file",
-        description="Run one case and write its NetCDF case file. Run again with the same arguments, "
+        "run", help="run one case and write its NetCDF case file (from an empty tube, a checkpoint, "
+                    "the end of a finished OUT, or --initial-state)",
+        description="Run one case and write its NetCDF case file. It starts from an empty tube, or with "
+                    "--initial-state FROM.nc from the grains at the end of another case file (a warm "
+                    "start). Run again with the same arguments, "
                     "it resumes from its checkpoint (OUT.ckpt) or, when OUT is finished, says so and "
                     "does nothing; with a longer run.duration it continues OUT from its end. A shorter "
                     "run.duration or other keys would replace OUT with another result: refused (exit 2, "

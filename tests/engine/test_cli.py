@@ -100,6 +100,23 @@ def test_keys_into_a_closed_pipe_ends_quietly():
     assert proc.wait(timeout=60) == 141 and err == ""
 
 
+def test_run_help_names_every_way_a_run_starts(capsys):
+    """`plugsim --help` and `plugsim run --help` say that a run starts from an empty tube, resumes
+    from its checkpoint, continues a finished file to a longer duration or warm-starts, and that a
+    finished file is not replaced without --overwrite."""
+    for argv in (["--help"], ["run", "--help"]):
+        with pytest.raises(SystemExit) as exit_:
+            main(argv)
+        assert exit_.value.code == 0
+        text = " ".join(capsys.readouterr().out.split())
+        for words in ("empty tube", "checkpoint", "--initial-state"):
+            assert words in text, f"plugsim {' '.join(argv)}: {words!r} missing"
+        if argv == ["run", "--help"]:
+            for words in ("resumes from its checkpoint", "continues OUT from its end", "warm start",
+                          "unless --overwrite"):
+                assert words in text, f"plugsim run --help: {words!r} missing"
+
+
 def test_version_is_the_package_version_everywhere(capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["--version"])
