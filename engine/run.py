@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import logging
 import math
@@ -23,6 +24,7 @@ from analysis.timeseries import MeanError, mean_error
 
 from .case import Case, defaults, flatten
 from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING
+from .kernels.cache import compile_lock
 from .output import DiskFullError, Recorder, global_attributes, out_of_space, write_atomically
 from .simulation import FeedBlocked, Simulation, SimulationError, check_threads
 
@@ -462,18 +464,31 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                 "command to start again")
         return NoSpaceError(f"{err}; the run stopped at t = {t:.3f} s, {kept}")
 
+    # A run that finds the kernels uncompiled holds the cache's lock until its first frame is done,
+    # so that they are compiled and saved by one process; another such run waits, then loads them
+    # (docs/decisions/0021).
+    first_compile = contextlib.ExitStack()
     if not kernels_compiled():
-        log.info("compiling kernels (first run only, up to two minutes)")
+        first_compile.enter_context(compile_lock(on_wait=lambda: log.info(
+            "waiting for another run compiling the kernels into the same cache")))
+        if kernels_compiled():  # that run has finished them
+            first_compile.close()
+        else:
+            log.info("compiling kernels (first run only, up to two minutes)")
     stop = None
-    if resumed:
-        sim, recorder, stop = resumed
-        sim.case = recorder.case = case  # differs at most in keys that only extend a run
-    else:
-        sim, recorder = Simulation(case, threads), Recorder(case)
-        if start is not None:
-            sim.add_particles(*start)
-            log.info("warm start from %s: %d grains", initial_state, len(start[0]))
-        recorder.sample(sim)
+    try:
+        if resumed:
+            sim, recorder, stop = resumed
+            sim.case = recorder.case = case  # differs at most in keys that only extend a run
+        else:
+            sim, recorder = Simulation(case, threads), Recorder(case)
+            if start is not None:
+                sim.add_particles(*start)
+                log.info("warm start from %s: %d grains", initial_state, len(start[0]))
+            recorder.sample(sim)
+    except BaseException:
+        first_compile.close()
+        raise
     if not sim.model.dashpot_resolved:
         log.warning("case %s: tangential dashpot gamma_t dt/(m/7) = %.2f above %.2f: %s", out.name,
                     sim.model.dashpot_step_ratio, DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING)
@@ -491,6 +506,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
         for _ in range(len(recorder.times) - 1, frames if window is None and not stop else 0):
             sim.advance(interval)
             recorder.sample(sim)
+            first_compile.close()  # the kernels of a frame are compiled and saved
             wedged = _check_health(sim, recorder.series["piston_force"][-1], previous_overlap)
             if wedged:
                 raise wedged
@@ -521,6 +537,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
             err.checkpoint = ckpt  # stopped before a new frame: the older checkpoint still resumes
         raise
     finally:
+        first_compile.close()
         progress.close()
     if window:
         reason = "steady"
