@@ -466,7 +466,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
 
     # A run that finds the kernels uncompiled holds the cache's lock until its first frame is done,
     # so that they are compiled and saved by one process; another such run waits, then loads them
-    # (docs/decisions/0021).
+    # (docs/decisions/0022).
     first_compile = contextlib.ExitStack()
     if not kernels_compiled():
         first_compile.enter_context(compile_lock(on_wait=lambda: log.info(

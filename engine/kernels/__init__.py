@@ -3,5 +3,5 @@
 from .cache import launch_threading_layer
 
 # Before any kernel runs: a cached caller of the parallel contact kernel may lack the hook that
-# starts the thread pool (docs/decisions/0021).
+# starts the thread pool (docs/decisions/0022).
 launch_threading_layer()

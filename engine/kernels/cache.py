@@ -1,4 +1,4 @@
-"""numba's on-disk kernel cache, made safe for runs that start together (docs/decisions/0021).
+"""numba's on-disk kernel cache, made safe for runs that start together (docs/decisions/0022).
 
 numba stores a compiled caller together with the code of the kernels it calls, and the hook that
 starts its thread pool (`reload_init`) only when the parallel kernel was compiled in the same

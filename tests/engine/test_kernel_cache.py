@@ -1,4 +1,4 @@
-"""numba's kernel cache with runs that start together (docs/decisions/0021): a caller compiled over
+"""numba's kernel cache with runs that start together (docs/decisions/0022): a caller compiled over
 a cached parallel kernel, as concurrent first runs leave it, loads and runs, bit-identical; the
 compile lock makes a second run wait."""
 
