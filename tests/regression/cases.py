@@ -9,12 +9,23 @@ result may move from its baseline, and why (the measured gaps are in the comment
     reduction    the workflow's per-case reduction (analysis: detect, slug_statistics,
                  case_summary) of the horizontal case file and of a synthetic case file
 
-The cases run in-process through engine.run.run_case (the path of `plugsim run`) or Simulation.
+The cases run through engine.run.run_case (the path of `plugsim run`) or Simulation, in a child
+process (`run_in_child`) whose numba cache is a folder named after a hash of the engine's numba
+source (kernel_cache_dir): numba's own cache checks only the file of each compiled function, so
+after a change to engine/kernels/laws.py, whose laws the kernels of contacts.py and stepper.py
+inline, it would load the old kernels and the regression test would pass on the old physics
+(measured: a 1 % change of k_n passed that way). `python -m tests.regression.cases OUT.json [CASE
+...]` computes the cases in this process and writes their quantities as JSON.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
+import os
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -187,6 +198,31 @@ def reduce_case(ds) -> dict:
     return out
 
 
+def kernel_cache_dir() -> Path:
+    """A numba cache folder for the current numba source of the engine (engine/kernels/*.py and
+    engine/gas.py), in the temporary folder: a new source compiles afresh (about 45 s of CPU),
+    an unchanged one reuses it."""
+    digest = hashlib.sha256()
+    for path in sorted((ROOT / "engine" / "kernels").glob("*.py")) + [ROOT / "engine" / "gas.py"]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    import numba
+    digest.update(numba.__version__.encode())
+    return Path(tempfile.gettempdir()) / f"plugsim-regression-numba-{digest.hexdigest()[:16]}"
+
+
+def run_in_child(names) -> dict:
+    """{case: quantities} of `names`, computed by a child process with kernel_cache_dir()."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(kernel_cache_dir()),
+               PYTHONPATH=os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    with tempfile.TemporaryDirectory(prefix="plugsim-regression-") as tmp:
+        out = Path(tmp) / "values.json"
+        res = subprocess.run([sys.executable, "-m", "tests.regression.cases", str(out), *names], cwd=ROOT,
+                             env=env, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise RuntimeError(f"the regression cases failed in the child process:\n{res.stderr[-4000:]}")
+        return json.loads(out.read_text())
+
+
 def _number(value):
     value = float(value)
     return None if math.isnan(value) else value
@@ -265,3 +301,11 @@ def tolerance(case: str, quantity: str) -> tuple[float, float]:
 
 
 CASES = {"packed_bed": packed_bed, "horizontal": horizontal, "vertical": vertical, "reduction": reduction}
+
+
+if __name__ == "__main__":
+    import warnings
+
+    warnings.simplefilter("ignore")  # a run's warnings go to stderr, not into the values
+    target, names = Path(sys.argv[1]), sys.argv[2:] or list(CASES)
+    target.write_text(json.dumps({name: CASES[name]() for name in names}, indent=1) + "\n")

@@ -7,22 +7,18 @@ A regeneration is a deliberate act: run it only when a result is meant to change
 numerics change, a new quantity), and name it in CHANGELOG.md with the reason; the script prints
 which stored values moved and by how much, and the line to adapt.
 
-The cases run in a child process with an empty numba cache (NUMBA_CACHE_DIR in a temporary
-folder), so the kernels are compiled from the current source: numba's on-disk cache does not notice
-a change to an inlined function of another file (engine/kernels/laws.py), and a stale cache would
-store the old physics as the new baseline. `--warm-cache` skips that (about a minute of compiling).
+The cases run in a child process whose numba cache is named after a hash of the engine's numba
+source (tests/regression/cases.py, kernel_cache_dir), as in the test: numba's own cache does not
+notice a change to an inlined function of another file (engine/kernels/laws.py), and a stale cache
+would store the old physics as the new baseline.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
-import os
 import platform
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 from . import cases
@@ -39,11 +35,10 @@ def software() -> dict:
             "python": platform.python_version(), "machine": platform.machine()}
 
 
-def write(name: str) -> dict:
-    """Run case `name` and store its quantities; returns the previous values (or {})."""
+def write(name: str, values: dict) -> dict:
+    """Store the quantities `values` of case `name`; returns the previous values (or {})."""
     path = cases.BASELINES / f"{name}.json"
     old = json.loads(path.read_text())["values"] if path.exists() else {}
-    values = cases.CASES[name]()
     doc = " ".join((cases.CASES[name].__doc__ or "").split())
     record = {"case": name, "about": doc, "duration_s": cases.DURATION.get(name, cases.DURATION["horizontal"]),
               "software": software(), "values": values}
@@ -71,21 +66,15 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.regression.regenerate", description=__doc__.split("\n\n")[0])
     parser.add_argument("names", nargs="*", choices=[[], *cases.CASES], metavar="CASE",
                         help=f"cases to regenerate (default all: {', '.join(cases.CASES)})")
-    parser.add_argument("--warm-cache", action="store_true",
-                        help="use the numba cache as it is (default: compile the kernels afresh)")
     args = parser.parse_args(argv)
     names = args.names or list(cases.CASES)
-    if not args.warm_cache:
-        with tempfile.TemporaryDirectory(prefix="plugsim-regression-numba-") as cache:
-            env = dict(os.environ, NUMBA_CACHE_DIR=cache,
-                       PYTHONPATH=os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
-            print("compiling the kernels afresh in a child process (about a minute)", flush=True)
-            return subprocess.call([sys.executable, "-m", "tests.regression.regenerate", "--warm-cache", *names],
-                                   cwd=ROOT, env=env)
+    if not cases.kernel_cache_dir().exists():
+        print("compiling the kernels for the current source (about a minute)", flush=True)
+    results = cases.run_in_child(names)
     changed = []
     for name in names:
         new_path = cases.BASELINES / f"{name}.json"
-        old = write(name)
+        old = write(name, results[name])
         new = json.loads(new_path.read_text())["values"]
         lines = moved(old, new)
         state = "new baseline" if not old else f"{len(lines)} value(s) moved" if lines else "unchanged"
