@@ -278,7 +278,10 @@ TOLERANCES = {
     # reduction. engine.*: the summary of the horizontal case file (0.08 s, no slug yet): its
     # pressure drop, dense and slug fractions and mean grain count are averages of the run's
     # frames, so the horizontal tolerance 1e-5 (float32 slice fields: a rounding-level change of
-    # the run either leaves them bit-identical or moves them by a float32 ulp, 6e-8); the window
+    # the run either leaves them bit-identical or moves them by a float32 ulp, 6e-8). rounding:
+    # engine.pressure_drop 0 at 0.08 s, 2e-16 at 0.09 s, 7.4e-10 at 0.10 s (with k_n changed by 1 %
+    # the in-process and cached runs already differed by 3e-16 at 0.08 s); physics at 0.08 s
+    # (test output): k_n 1.65e-3, friction 8.3e-4, drag 1.9e-3. The window
     # start is a frame time (exact), counts and the regime exact. synthetic.*: detect,
     # case_summary and slug_statistics on a synthetic case file from numpy's seeded generator:
     # deterministic arithmetic, so 1e-9 (a numpy or pandas change of summation order moves it by
