@@ -311,4 +311,8 @@ if __name__ == "__main__":
 
     warnings.simplefilter("ignore")  # a run's warnings go to stderr, not into the values
     target, names = Path(sys.argv[1]), sys.argv[2:] or list(CASES)
-    target.write_text(json.dumps({name: CASES[name]() for name in names}, indent=1) + "\n")
+    # the runs through run_case first: the first of them compiles or loads the kernels (under
+    # run_case's compile lock where the engine has one), packed_bed then finds them loaded
+    order = sorted(names, key=lambda name: name == "packed_bed")
+    values = {name: CASES[name]() for name in order}
+    target.write_text(json.dumps({name: values[name] for name in names}, indent=1) + "\n")
