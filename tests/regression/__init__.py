@@ -1,0 +1,1 @@
+"""Regression baselines (tests/regression/cases.py; regenerate: python -m tests.regression.regenerate)."""
