@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import time
 from pathlib import Path
@@ -23,6 +24,25 @@ from pathlib import Path
 import numba
 
 LOCK_NAME = "plugsim-kernels.lock"
+KERNELS = Path(__file__).resolve().parent
+
+
+def kernel_source_digest(folder: Path = KERNELS) -> str:
+    """12 hex digits of the SHA-256 of every kernel module's source (name and bytes)."""
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()[:12]
+
+
+def use_source_keyed_cache() -> Path:
+    """Point numba's cache at a folder named after kernel_source_digest(), under NUMBA_CACHE_DIR
+    if set, else engine/kernels/__pycache__: any edit of a kernel module starts a new cache.
+    Must run before the kernel modules are imported (numba reads it when it decorates)."""
+    base = Path(os.environ.get("NUMBA_CACHE_DIR") or KERNELS / "__pycache__")
+    folder = base / f"kernels-{kernel_source_digest()}"
+    numba.config.CACHE_DIR = str(folder)
+    return folder
 
 
 def launch_threading_layer() -> None:

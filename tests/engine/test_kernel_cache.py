@@ -38,12 +38,21 @@ def test_a_caller_compiled_over_a_cached_parallel_kernel_loads_and_gives_the_sam
     assert len(compiled.stdout.split()) == 60 * 6 + 2 and any(float.fromhex(v) for v in compiled.stdout.split())
 
 
+# holds the lock until the file argv[1] exists (the waiting process creates it), at most 60 s,
+# so that the test does not depend on how fast the second process starts on a loaded machine
 HOLD = """
 import sys, time
+from pathlib import Path
 from engine.kernels.cache import compile_lock
-with compile_lock(on_wait=lambda: print("waiting", flush=True)) as waited:
+flag = Path(sys.argv[1])
+def waiting():
+    print("waiting", flush=True)
+    flag.touch()
+with compile_lock(on_wait=waiting) as waited:
     print(f"locked {waited:.3f} {time.time():.3f}", flush=True)
-    time.sleep(float(sys.argv[1]))
+    deadline = time.monotonic() + 60
+    while sys.argv[2] == "hold" and not flag.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
 print(f"released {time.time():.3f}", flush=True)
 """
 
@@ -52,11 +61,12 @@ def test_the_compile_lock_makes_a_second_run_wait_for_the_first(tmp_path):
     """Two processes on one cache directory: the second waits (and says so) until the first
     releases the lock; no kernel is compiled."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(ROOT))
-    run = lambda hold: subprocess.Popen([sys.executable, "-c", HOLD, str(hold)], stdout=subprocess.PIPE,
+    flag = tmp_path / "second-is-waiting"
+    run = lambda hold: subprocess.Popen([sys.executable, "-c", HOLD, str(flag), hold], stdout=subprocess.PIPE,
                                         text=True, cwd=ROOT, env=env)
-    a = run(1.5)
+    a = run("hold")
     assert a.stdout.readline().startswith("locked")
-    b = run(0.0)
+    b = run("go")
     out_a, _ = a.communicate(timeout=60)
     out_b, _ = b.communicate(timeout=60)
     released = float(out_a.split()[-1])
@@ -64,4 +74,4 @@ def test_the_compile_lock_makes_a_second_run_wait_for_the_first(tmp_path):
     assert lines[0] == "waiting"
     _, waited, locked = lines[1].split()
     assert float(locked) >= released - 0.05 and float(waited) > 0.0, (out_a, out_b)
-    assert list((tmp_path / "cache").glob("*/plugsim-kernels.lock"))
+    assert list((tmp_path / "cache").rglob("plugsim-kernels.lock"))

@@ -11,10 +11,11 @@ result may move from its baseline, and why (the measured gaps are in the comment
 
 The cases run through engine.run.run_case (the path of `plugsim run`) or Simulation, in a child
 process (`run_in_child`) whose numba cache is a folder named after a hash of the engine's numba
-source (kernel_cache_dir): numba's own cache checks only the file of each compiled function, so
-after a change to engine/kernels/laws.py, whose laws the kernels of contacts.py and stepper.py
-inline, it would load the old kernels and the regression test would pass on the old physics
-(measured: a 1 % change of k_n passed that way). `python -m tests.regression.cases OUT.json [CASE
+source (kernel_cache_dir), apart from the checkout's own cache: numba's own cache checks only the
+file of each compiled function, so after a change to engine/kernels/laws.py, whose laws the
+kernels of contacts.py and stepper.py inline, it loaded the old kernels and the regression test
+passed on the old physics (measured: a 1 % change of k_n passed that way; the engine's cache is
+now keyed on every kernel source too, docs/decisions/0023). `python -m tests.regression.cases OUT.json [CASE
 ...]` computes the cases in this process and writes their quantities as JSON.
 """
 
