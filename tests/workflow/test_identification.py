@@ -115,8 +115,10 @@ def test_each_reading_has_its_effect_against_the_baseline_reading():
     baselines = {"s": {"gas.face_permeability": "arithmetic", "gas.scheme": "unsplit"}}
     df = identification.table(STATEMENTS, tables, [{"statement": "DP", "sweep": "s"}], READINGS, baselines)
     df = df.set_index("reading")
+    # a reading is named by what differs from the baseline
+    assert set(df.index) == {"baseline", "face_permeability=harmonic"}
     # harmonic 33 hPa/m against the arithmetic baseline's 47, each +- 0.5: -14 +- 0.71
-    assert df.loc["face_permeability=harmonic, scheme=unsplit", "effect"] == pytest.approx(-14.0)
-    assert df.loc["face_permeability=harmonic, scheme=unsplit", "effect_error"] == pytest.approx(0.5 * 2 ** 0.5)
-    assert df.loc["face_permeability=arithmetic, scheme=unsplit", "effect"] == 0.0
+    assert df.loc["face_permeability=harmonic", "effect"] == pytest.approx(-14.0)
+    assert df.loc["face_permeability=harmonic", "effect_error"] == pytest.approx(0.5 * 2 ** 0.5)
+    assert df.loc["baseline", "effect"] == 0.0
     assert "-14 +- 0.71" in identification.markdown(df.reset_index())

@@ -37,9 +37,23 @@ COLUMN = {"pressure_drop": ("pressure_drop", "pressure_drop_sem"),
           "travel_speed": ("travel_speed", None)}
 
 
-def reading_label(row: pd.Series, readings: list[str]) -> str:
-    """'face_permeability=harmonic, scheme=unsplit, ...' from the reading keys of a table row."""
-    return ", ".join(f"{key.split('.', 1)[1]}={row[key]}" for key in readings if key in row)
+def reading_label(row: pd.Series, readings: list[str], baseline: dict | None = None) -> str:
+    """'face_permeability=harmonic, scheme=unsplit, ...' from the reading keys of a table row; with
+    a baseline only the keys that differ from it, or 'baseline'."""
+    keys = [key for key in readings if key in row]
+    if baseline is not None:
+        keys = [key for key in keys if key not in baseline or not _same(row[key], baseline[key])]
+        if not keys:
+            return "baseline"
+    return ", ".join(f"{key.split('.', 1)[1]}={row[key]}" for key in keys)
+
+
+def _same(a, b) -> bool:
+    """Equal values of a reading key (numbers compared as floats)."""
+    try:
+        return math.isclose(float(a), float(b))
+    except (TypeError, ValueError):
+        return str(a) == str(b)
 
 
 def verdict(value: float, error: float, st: dict) -> str:
@@ -49,13 +63,14 @@ def verdict(value: float, error: float, st: dict) -> str:
     return "yes" if value + reach >= lo and value - reach <= hi else "no"
 
 
-def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str) -> list[dict]:
+def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str,
+                 baseline: dict | None = None) -> list[dict]:
     """One result per reading (group of rows sharing the reading keys)."""
     keys = [k for k in readings if k in rows]
     groups = rows.groupby(keys, sort=False, dropna=False) if keys else [((), rows)]
     out = []
     for _, group in groups:
-        label = reading_label(group.iloc[0], readings)
+        label = reading_label(group.iloc[0], readings, baseline)
         if measure == "regime":
             value = str(group["regime"].iloc[0])
             out.append({"reading": label, "ours": value, "ours_error": NAN, "ratio": NAN,
@@ -106,10 +121,10 @@ def table(statements: list[dict], tables: dict[str, pd.DataFrame], compare: list
             data = data[np.isclose(data[key], value)] if not isinstance(value, str) else data[data[key] == value]
         if data.empty:
             raise ValueError(f"identification: no row of sweep {item['sweep']} matches {item.get('where')}")
-        results = compare_rows(st, data, readings, measure)
         baseline = (baselines or {}).get(item["sweep"])
+        results = compare_rows(st, data, readings, measure, baseline)
         if baseline is not None:
-            add_effects(results, reading_label(pd.Series(baseline), readings))
+            add_effects(results, "baseline")
         for result in results:
             rows.append({"id": st["id"], "statement": st["statement"], "sweep": item["sweep"],
                          "measure": measure, "paper_value": paper_text(st),
@@ -155,7 +170,7 @@ def figure(df: pd.DataFrame, path) -> None:
     ids = list(dict.fromkeys(df["id"]))
     readings = list(dict.fromkeys(df["reading"]))
     grid = np.full((len(ids), len(readings)), np.nan)
-    fig, ax = plt.subplots(figsize=(2.2 + 1.6 * len(readings), 1.2 + 0.45 * len(ids)))
+    fig, ax = plt.subplots(figsize=(max(7.0, 2.2 + 1.6 * len(readings)), 1.2 + 0.45 * len(ids)))  # title fits
     for _, r in df.iterrows():
         i, j = ids.index(r["id"]), readings.index(r["reading"])
         grid[i, j] = {"yes": 1.0, "no": 0.0, "no (blocked)": 0.0}.get(r["within"], np.nan)
@@ -180,7 +195,8 @@ def figure(df: pd.DataFrame, path) -> None:
 def main(smk) -> None:
     log = setup_logging(smk)
     statements = yaml.safe_load(Path(smk.input.statements).read_text())
-    tables = {Path(p).stem: read_table(p) for p in smk.input.tables}
+    paths = [smk.input.tables] if isinstance(smk.input.tables, str) else smk.input.tables  # one, standalone
+    tables = {Path(p).stem: read_table(p) for p in paths}
     df = table(statements, tables, list(smk.params.compare), list(smk.params.readings),
                dict(smk.params.get("baselines") or {}))
     write_table(df, smk.output.csv)
