@@ -14,7 +14,7 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import params
 from .kernels import slices as S
-from .kernels.contacts import evaluate_contacts
+from .kernels.contacts import evaluate_contacts, pair_buffers
 from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
 
@@ -157,6 +157,7 @@ class Simulation:
         self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
         self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
         self._chunks = self._chunk_arrays(cap)
+        self._pairs = pair_buffers()
         self._dirty = True
 
     def _chunk_arrays(self, cap: int) -> Chunks:
@@ -232,7 +233,7 @@ class Simulation:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
         evaluate_contacts(self._grains(), int(self._n[0]), self._nbr_start, self._nbr, self._p, self._diag,
-                          self._chunks)
+                          self._chunks, self._pairs)
         self._dirty = False
 
     def _rebuild(self) -> None:
@@ -260,12 +261,12 @@ class Simulation:
             if self._dirty:
                 self._prepare()
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
-                            self.gas.arrays(), self._chunks)
+                            self.gas.arrays(), self._chunks, self._pairs)
             if self._counters[params.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
-                            self._diag, self._chunks)
+                            self._diag, self._chunks, self._pairs)
                 taken += 1
             self._steps += taken
             remaining -= taken

@@ -54,23 +54,29 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
     vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
-    if vt <= 0.0:
-        return 0.0, 0.0, 0.0, gt
+    # branch-free (selects), so that the pair and wall kernels vectorise; at vt = 0 the division is
+    # by 1 and its result unused (no division by zero in any error model); `not (vt <= 0)` keeps a
+    # nan slip a nan force
+    slipping = not (vt <= 0.0)
     fv = gt * vt
     fc = mu * fn
     ft = min(fc, fv)
-    s = -ft / vt
-    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
+    s = -ft / (vt if slipping else 1.0)
+    g = gt if fv < fc else 0.0
+    if slipping:
+        return s * vtx, s * vty, s * vtz, g
+    return 0.0, 0.0, 0.0, gt
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def rolling_torque(fn, wx, wy, wz, r, mu_r, cap):
     """Rolling-resistance torque on the first body against the relative spin w, N m."""
     w = math.sqrt(wx * wx + wy * wy + wz * wz)
-    if w <= 0.0:
-        return 0.0, 0.0, 0.0
-    s = -min(mu_r * r * fn, cap * w) / w
-    return s * wx, s * wy, s * wz
+    spinning = not (w <= 0.0)
+    s = -min(mu_r * r * fn, cap * w) / (w if spinning else 1.0)  # branch-free, see tangential
+    if spinning:
+        return s * wx, s * wy, s * wz
+    return 0.0, 0.0, 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -118,11 +124,13 @@ def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional):
     Inlined with constant normals, the zero components fold away.
     """
     fn = normal_force(delta, vx * nx + vy * ny + vz * nz, c)
-    if fn <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
                                                         c, optional)
-    return fn, fx, fy, fz, tx, ty, tz, g
+    # a contact that pulls (fn <= 0) exerts nothing: selects, not a branch (the wall kernel
+    # vectorises); a nan fn keeps its values
+    if not (fn <= 0.0):
+        return fn, fx, fy, fz, tx, ty, tz, g
+    return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")

@@ -9,7 +9,7 @@ from engine import Case, Simulation
 from engine.bench import settled_simulation
 from engine.cli import main as cli_main
 from engine.kernels import params
-from engine.kernels.contacts import contact_forces, contact_forces_chunked
+from engine.kernels.contacts import contact_forces, contact_forces_chunked, pair_buffers
 from engine.kernels.state import Chunks
 
 TWO_THREADS = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 numba threads")
@@ -30,7 +30,7 @@ def _forces(sim, nchunks):
     grains = sim._grains()._replace(force=force, torque=torque, viscous_damping=damping, wall_normal=wall)
     args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
-        contact_forces(*args)
+        contact_forces(*args, pair_buffers())
         return force[:n], torque[:n], damping[:n], wall[:n], diag, None
     spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 3))
     spill_d = np.zeros((nchunks, cap))
