@@ -9,7 +9,9 @@
    in.tube for N steps on the same packing; both pinned to one core (taskset), OMP_NUM_THREADS =
    NUMBA_NUM_THREADS = 1. The vCPUs are shared and noisy, so the two codes alternate in one run.
 3. Particle-steps per second: plugsim from its JSON; LAMMPS from "Loop time of T on 1 procs for N
-   steps with A atoms" as N A / T. Both time only the time loop (no set-up, no I/O).
+   steps with A atoms" as N A / T. Both time only the time loop (no set-up, no I/O). ns per contact:
+   a step's time over the touching contacts (grain pairs + cylinder and inlet contacts) that
+   plugsim counts at the end of its run, for both codes (the same packing, the same steps).
 4. Every LAMMPS run is checked: no lost atoms, same grain count and steps as plugsim, wall overlaps
    below 1 % of d, speeds bounded, finite energies. Problems make the exit status 1.
 

@@ -44,7 +44,8 @@ PAIR_BLOCK = 512
 
 def pair_buffers(block: int = PAIR_BLOCK) -> Pairs:
     """Work arrays of contact_forces for blocks of `block` list entries and grains."""
-    return Pairs(np.zeros(block + 1, dtype=np.int64), np.zeros(block + 1, dtype=np.int64),
+    # unsigned indices: numba then skips the wrap-around of negative indices (and its register spills)
+    return Pairs(np.zeros(block + 1, dtype=np.uint64), np.zeros(block + 1, dtype=np.uint64),
                  np.zeros((PAIR_ROWS, block + 1)), np.zeros((WALL_ROWS, block)))
 
 
