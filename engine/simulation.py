@@ -160,6 +160,17 @@ class Simulation:
         self._pairs = pair_buffers()
         self._dirty = True
 
+    def __getstate__(self) -> dict:
+        """The pickled state (restart_state, checkpoints) leaves out the contact passes' work arrays:
+        every call rewrites them before reading."""
+        state = dict(self.__dict__)
+        state.pop("_pairs", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._pairs = pair_buffers()  # also for a state pickled before the passes had work arrays
+
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
         rows = cap if self.threads > 1 else 1
