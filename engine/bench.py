@@ -138,11 +138,19 @@ def _run_pass(which, calls, grains, nbr_start, nbr, p, pairs, blocks):
                                  blocks[b, 3] > 0)
 
 
+@nb.njit(cache=True)
+def _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs):
+    """`calls` times contact_forces (the single loop with empty work arrays, else the passes)."""
+    for _ in range(calls):
+        contacts.contact_forces(grains, n, nbr_start, nbr, p, diag, pairs)
+
+
 def time_contact_kernels(sim: Simulation, calls: int, repeats: int) -> dict:
-    """Seconds per call of the contact forces alone (evaluate_contacts) and of each of its passes
-    over all blocks of grains (one thread, PASSES), medians of `repeats` runs of `calls` calls on
-    the present state. The passes' sum exceeds the whole by the caches each pass alone leaves cold."""
-    n, p, grains, pairs = sim.n_particles, sim._p, sim._grains(), sim._pairs
+    """Seconds per call of the one-thread contact forces alone, as the single loop and in passes,
+    and of each pass over all blocks of grains (PASSES), on the present state: medians of `repeats`
+    interleaved runs of `calls` calls each (called from compiled code), and the median per-run
+    ratio single loop / passes (passes_speedup)."""
+    n, p, grains, pairs = sim.n_particles, sim._p, sim._grains(), contacts.pair_buffers()
     nbr_start, nbr, diag, chunks = sim._nbr_start, sim._nbr, sim._diag.copy(), sim._chunks
     dia, cap = 2.0 * sim.model.radius, pairs.walls.shape[1]
     blocks, lo = [], 0  # as contact_forces cuts them
@@ -156,14 +164,19 @@ def time_contact_kernels(sim: Simulation, calls: int, repeats: int) -> dict:
         blocks.append((lo, hi, m, int(inlet)))
         lo = hi
     blocks = np.array(blocks, dtype=np.int64)
-    runs = {"contact_forces": lambda: [contacts.evaluate_contacts(grains, n, nbr_start, nbr, p, diag, chunks, pairs)
-                                       for _ in range(calls)]}
+    single = contacts.pair_buffers(0)
+    runs = {"single_loop": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, single),
+            "passes": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs)}
     for k, name in enumerate(PASSES):
         runs[name] = lambda k=k: _run_pass(k, calls, grains, nbr_start, nbr, p, pairs, blocks)
-    out = {}
+    times = {name: [] for name in runs}
     for name, run in runs.items():
         run()  # compiled, caches warm
-        out[name] = statistics.median(_timed(run) / calls for _ in range(repeats))
+    for _ in range(repeats):  # interleaved, so that a change of the machine's load hits all alike
+        for name, run in runs.items():
+            times[name].append(_timed(run) / calls)
+    out = {name: statistics.median(t) for name, t in times.items()}
+    out["passes_speedup"] = statistics.median(a / b for a, b in zip(times["single_loop"], times["passes"]))
     contacts.evaluate_contacts(grains, n, nbr_start, nbr, p, diag, chunks, pairs)  # the state's forces as they were
     out["blocks"] = len(blocks)
     return out
@@ -268,7 +281,7 @@ def _timed(call) -> float:
 
 
 def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1,
-        kernels: bool = False) -> dict:
+        kernels: bool = False, passes: bool = False) -> dict:
     """Build, settle and time the standard case; returns the numbers it prints.
 
     ns_per_contact: a whole step's time over the touching contacts (grain pairs plus cylinder and
@@ -276,11 +289,13 @@ def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads:
     alone and each of their passes, per call and per contact (kernels_s, kernels_ns_per_contact).
     """
     sim = settled_simulation(threads=threads)
+    sim.set_contact_passes(passes)
     rates = measure_rate(sim, steps, repeats)
     rate = statistics.median(rates)
     count = contact_count(sim)
     contacts = count["pairs"] + count["walls"]
-    result = {"threads": threads, "grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),
+    result = {"threads": threads, "contact_passes": passes, "grains": sim.n_particles,
+              "contacts_per_grain": round(contacts_per_grain(sim), 3),
               "time_step_s": sim.dt, "steps_per_repeat": steps, "repeats": repeats,
               "particle_steps_per_s_median": rate,
               "particle_steps_per_s_all": [round(r) for r in rates],
@@ -289,7 +304,8 @@ def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads:
     if kernels:
         seconds = time_contact_kernels(sim, max(1, steps // 4), repeats)
         result["kernels_s"] = seconds
-        result["kernels_ns_per_contact"] = {k: 1e9 * v / contacts for k, v in seconds.items() if k != "blocks"}
+        result["kernels_ns_per_contact"] = {k: 1e9 * v / contacts for k, v in seconds.items()
+                                            if k not in ("blocks", "passes_speedup")}
     if with_compile:
         result["compile_s"] = compile_time()
     return result
@@ -325,14 +341,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=1,
                         help="threads for the contact forces of the timed steps (default 1)")
     parser.add_argument("--kernels", action="store_true",
-                        help="also time the contact forces alone and each of their passes (one thread)")
+                        help="also time the one-thread contact forces alone, single loop against passes, "
+                             "and each pass")
+    parser.add_argument("--passes", action="store_true",
+                        help="time the steps with the contact forces in passes (Simulation.set_contact_passes)")
     parser.add_argument("--gas", action="store_true",
                         help="also time the same packing with the gas on and split the cost per step")
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
     _check_arguments(parser, args)
-    result = run(args.steps, args.repeats, not args.no_compile, args.threads, args.kernels)
+    result = run(args.steps, args.repeats, not args.no_compile, args.threads, args.kernels, args.passes)
     if args.gas:
         result["gas"] = gas_cost_split(args.steps, args.repeats)
     if args.write_lammps:
@@ -355,8 +374,9 @@ def main(argv: list[str] | None = None) -> int:
               f"pairs + {c['walls']} wall contacts; {c['list_entries']} list entries)")
         if "kernels_s" in result:
             k, ns = result["kernels_s"], result["kernels_ns_per_contact"]
-            print(f"contact forces alone   {k['contact_forces'] * 1e6:.1f} us per call, "
-                  f"{ns['contact_forces']:.1f} ns per contact ({k['blocks']} blocks)")
+            print(f"contact forces alone   single loop {k['single_loop'] * 1e6:.1f} us per call, "
+                  f"{ns['single_loop']:.1f} ns per contact; in passes {k['passes'] * 1e6:.1f} us, "
+                  f"{ns['passes']:.1f} ns per contact ({k['blocks']} blocks): passes {k['passes_speedup']:.3f}x")
             print("  passes, ns/contact   " + ", ".join(f"{name} {ns[name]:.1f}" for name in PASSES))
         if "gas" in result:
             g = result["gas"]

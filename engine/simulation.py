@@ -14,7 +14,7 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import params
 from .kernels import slices as S
-from .kernels.contacts import evaluate_contacts, pair_buffers
+from .kernels.contacts import PAIR_BLOCK, evaluate_contacts, pair_buffers
 from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
 
@@ -52,6 +52,7 @@ class Simulation:
 
     def __init__(self, case: Case, threads: int = 1):
         self.threads = check_threads(threads)
+        self.contact_passes = False  # set_contact_passes
         self.case = case
         self.model = ContactModel.from_case(case)
         self.feed = Feed(case, self.model.mass, case["run.seed"])
@@ -157,7 +158,7 @@ class Simulation:
         self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
         self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
         self._chunks = self._chunk_arrays(cap)
-        self._pairs = pair_buffers()
+        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
         self._dirty = True
 
     def __getstate__(self) -> dict:
@@ -169,7 +170,15 @@ class Simulation:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
-        self._pairs = pair_buffers()  # also for a state pickled before the passes had work arrays
+        self.contact_passes = state.get("contact_passes", False)  # also a state pickled before them
+        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
+
+    def set_contact_passes(self, on: bool) -> None:
+        """One thread: the contact forces in passes (True) or in the single loop (False, the default,
+        measured faster on the project's shared 2-core machines; docs/performance.md, "The contact
+        kernel"). The two differ in the last bit of the forces."""
+        self.contact_passes = bool(on)
+        self._pairs = pair_buffers(PAIR_BLOCK if on else 0)
 
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""

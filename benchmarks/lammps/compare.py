@@ -380,7 +380,8 @@ def ns_per_contact(ours_runs: list[dict], lammps_rates: list[float]) -> dict | N
     if not all(counts):
         return None
     per = lambda rate, o, c: 1e9 * o["grains"] / rate / (c["pairs"] + c["walls"])  # noqa: E731
-    return {"plugsim": statistics.median(per(o["particle_steps_per_s_median"], o, c) for o, c in zip(ours_runs, counts)),
+    return {"plugsim": statistics.median(per(o["particle_steps_per_s_median"], o, c)
+                                         for o, c in zip(ours_runs, counts)),
             "lammps": statistics.median(per(rate, o, c) for rate, o, c in zip(lammps_rates, ours_runs, counts)),
             "contacts": counts[-1]}
 

@@ -2,16 +2,17 @@
 
 The loops over contacts; the laws they apply are in laws.py. `grains` is a state.Grains.
 
-One thread runs the contacts in passes (contact_forces), each a simple loop that the hardware runs
-well, over blocks of consecutive (cell-sorted) grains whose work arrays stay in the core's cache:
-the walls, branch-free over the block's grains (vectorised); the touching pairs compacted from the
-half list with their centre offsets; their velocities and spins gathered into contiguous rows; the
-pair law, branch-free over the touching pairs (vectorised); the scatter of the results into the
-grains. The sums are added in the order of the single-loop kernel that threads still run
-(contact_forces_chunked): a grain's own pairs in list order, then its cylinder and its inlet
-contact, onto the reactions of the grains before it. Compiled without fastmath's contract and
-reassoc the two give the same bits; with them LLVM fuses and reorders the arithmetic differently
-in a vectorised loop, and the forces differ in the last bit.
+One thread runs either the single loop (the default: a grain's pairs, the reactions scattered
+inside, then its walls) or, given work arrays (pair_buffers; Simulation.set_contact_passes), the
+contacts in passes (contact_forces), each a simple loop, over blocks of consecutive (cell-sorted)
+grains: the walls, branch-free over the block's grains (vectorised); the touching pairs compacted
+from the half list; their offsets, velocities and spins gathered into contiguous rows; the pair
+law, branch-free over the touching pairs (vectorised); the scatter of the results into the grains.
+Both add a grain's own pairs in list order, then its cylinder and its inlet contact, onto the
+reactions of the grains before it. Compiled without fastmath's contract and reassoc the two give
+the same bits; with them LLVM fuses and reorders the arithmetic differently in a vectorised loop,
+and the forces differ in the last bit. Measured against each other: docs/performance.md, "The
+contact kernel" (the passes are not faster on the project's machines).
 """
 
 import math
@@ -59,13 +60,17 @@ def contact_forces(grains, n, nbr_start, nbr, p, diag, pairs):
     wall_normal[i]: normal force of the cylinder on grain i, N (0 without contact).
     Pairs with a kinematic (feed) grain act on the dynamic grain only; the feed drives the other.
     `pairs` (a state.Pairs, pair_buffers()) holds the passes' work arrays: blocks of consecutive
-    grains with at most its capacity of list entries and grains are run through all passes in turn.
+    grains with at most its capacity of list entries and grains are run through all passes in turn;
+    with empty ones (pair_buffers(0)) the single loop runs.
     """
     cap = pairs.walls.shape[1]
     longest = 0
-    for i in range(n):
-        longest = max(longest, nbr_start[i + 1] - nbr_start[i])
-    if longest > cap:  # a grain with more list entries than a block holds (no packing has them)
+    if cap > 0:
+        for i in range(n):
+            longest = max(longest, nbr_start[i + 1] - nbr_start[i])
+    # the single loop: without work arrays (pair_buffers(0), the default: Simulation.contact_passes),
+    # or for a grain with more list entries than a block holds (no packing has them)
+    if cap == 0 or longest > cap:
         max_overlap, max_feed, _ = _contacts_range(0, n, grains, nbr_start, nbr, p, grains.force, grains.torque,
                                                    grains.viscous_damping, nbr_start[:0])
         diag[0] = max_overlap
@@ -174,7 +179,7 @@ def _passes_with(optional):
             on = walls[GDYN, i] > 0.0 and rho2 > inner2
             fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
                 delta, 0.0, y / rho, z / rho, walls[GVX, i], walls[GVY, i], walls[GVZ, i], walls[GWX, i],
-                walls[GWY, i], walls[GWZ, i], wall, optional)
+                walls[GWY, i], walls[GWZ, i], wall, optional, True)
             walls[CN, i] = fn if on else 0.0
             walls[CFX, i] = fx if on else 0.0
             walls[CFY, i] = fy if on else 0.0
@@ -192,7 +197,7 @@ def _passes_with(optional):
             on = walls[GDYN, i] > 0.0 and x < r
             fn, fx, fy, fz, tx, ty, tz, g = laws.wall_contact(
                 delta, -1.0, 0.0, 0.0, walls[GVX, i], walls[GVY, i], walls[GVZ, i], walls[GWX, i],
-                walls[GWY, i], walls[GWZ, i], wall, optional)
+                walls[GWY, i], walls[GWZ, i], wall, optional, True)
             walls[IFX, i] = fx if on else 0.0
             walls[IFY, i] = fy if on else 0.0
             walls[IFZ, i] = fz if on else 0.0
@@ -272,7 +277,8 @@ def _passes_with(optional):
             else:
                 rwx = rwy = rwz = 0.0
             fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
-                fn, nx, ny, nz, vrx, vry, vrz, rows[WX, c], rows[WY, c], rows[WZ, c], rwx, rwy, rwz, pair, optional)
+                fn, nx, ny, nz, vrx, vry, vrz, rows[WX, c], rows[WY, c], rows[WZ, c], rwx, rwy, rwz, pair, optional,
+                True)
             on = not (fn <= 0.0)
             rows[FX, c] = fx if on else 0.0
             rows[FY, c] = fy if on else 0.0
@@ -301,7 +307,8 @@ def scatter(grains, lo, hi, p, pair_j, start, rows, walls, optional, inlet):
     reactions of the grains before it; the reactions go to j > i as they come (the single-loop
     kernel's order); the inlet rows only if `inlet` (walls_pass wrote them). Returns the largest wall
     overlap of a dynamic grain."""
-    force, torque, viscous_damping, wall_normal = grains.force, grains.torque, grains.viscous_damping, grains.wall_normal
+    force, torque, viscous_damping = grains.force, grains.torque, grains.viscous_damping
+    wall_normal = grains.wall_normal
     implicit = p[params.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
     tjx_row = TJX if optional else TX
     tjy_row = TJY if optional else TY
