@@ -17,10 +17,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import numba as nb
 import numpy as np
 
 from .case import Case
 from .feed import layer_template
+from .kernels import contacts, laws, params
 from .simulation import Simulation
 
 PLUG_LENGTH = 0.06  # m
@@ -85,6 +87,99 @@ def contacts_per_grain(sim: Simulation) -> float:
     wall = np.count_nonzero(np.hypot(pos[:, 1], pos[:, 2]) + d / 2 > sim.case["tube.diameter"] / 2)
     wall += np.count_nonzero(pos[:, 0] < d / 2)
     return (2 * pairs + wall) / len(pos)
+
+
+def contact_count(sim: Simulation) -> dict:
+    """Touching contacts of the present state, as the contact kernel sees them: grain pairs of the
+    neighbour list closer than d, cylinder and inlet contacts of the dynamic grains."""
+    n, d, r = sim.n_particles, 2 * sim.model.radius, sim.model.radius
+    pos, start, dynamic = sim._pos[:n], sim._nbr_start[:n + 1], sim._in_feed[:n] == 0
+    first = np.repeat(np.arange(n), np.diff(start))
+    offset = pos[sim._nbr[:start[n]]] - pos[first]
+    pairs = int(np.count_nonzero(np.einsum("ij,ij->i", offset, offset) < d * d))
+    inner = sim.case["tube.diameter"] / 2 - r
+    walls = int(np.count_nonzero(dynamic & (pos[:, 1] ** 2 + pos[:, 2] ** 2 > inner * inner)))
+    walls += int(np.count_nonzero(dynamic & (pos[:, 0] < r)))
+    return {"pairs": pairs, "walls": walls, "list_entries": int(start[n])}
+
+
+PASSES = ("walls", "compact", "gather", "pair_law", "scatter")
+
+
+@nb.njit(cache=True)
+def _run_pass(which, calls, grains, nbr_start, nbr, p, pairs, blocks):
+    """`calls` times one pass of contact_forces (PASSES[which]) over the blocks (rows lo, hi, touching
+    pairs, inlet rows written)."""
+    optional = laws.optional_terms(p)
+    dia = 2.0 * p[params.RADIUS]
+    for _ in range(calls):
+        for b in range(blocks.shape[0]):
+            lo, hi, m = blocks[b, 0], blocks[b, 1], blocks[b, 2]
+            if which == 0:
+                if optional:
+                    contacts._walls_optional(grains, lo, hi, p, pairs.walls)
+                else:
+                    contacts._walls_plain(grains, lo, hi, p, pairs.walls)
+            elif which == 1:
+                contacts.compact_touching(grains.pos, lo, hi, nbr_start, nbr, dia, pairs.pair_j, pairs.start,
+                                          pairs.rows)
+            elif which == 2:
+                if optional:
+                    contacts._gather_optional(grains, lo, hi, pairs.pair_j, pairs.start, pairs.rows)
+                else:
+                    contacts._gather_plain(grains, lo, hi, pairs.pair_j, pairs.start, pairs.rows)
+            elif which == 3:
+                if optional:
+                    contacts._pair_law_optional(m, p, pairs.rows)
+                else:
+                    contacts._pair_law_plain(m, p, pairs.rows)
+            else:
+                contacts.scatter(grains, lo, hi, p, pairs.pair_j, pairs.start, pairs.rows, pairs.walls, optional,
+                                 blocks[b, 3] > 0)
+
+
+@nb.njit(cache=True)
+def _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs):
+    """`calls` times contact_forces (the single loop with empty work arrays, else the passes)."""
+    for _ in range(calls):
+        contacts.contact_forces(grains, n, nbr_start, nbr, p, diag, pairs)
+
+
+def time_contact_kernels(sim: Simulation, calls: int, repeats: int) -> dict:
+    """Seconds per call of the one-thread contact forces alone, as the single loop and in passes,
+    and of each pass over all blocks of grains (PASSES), on the present state: medians of `repeats`
+    interleaved runs of `calls` calls each (called from compiled code), and the median per-run
+    ratio single loop / passes (passes_speedup)."""
+    n, p, grains, pairs = sim.n_particles, sim._p, sim._grains(), contacts.pair_buffers()
+    nbr_start, nbr, diag, chunks = sim._nbr_start, sim._nbr, sim._diag.copy(), sim._chunks
+    dia, cap = 2.0 * sim.model.radius, pairs.walls.shape[1]
+    blocks, lo = [], 0  # as contact_forces cuts them
+    while lo < n:
+        hi = lo
+        while hi < n and hi - lo < cap and nbr_start[hi + 1] - nbr_start[lo] <= cap:
+            hi += 1
+        m = contacts.compact_touching(grains.pos, lo, hi, nbr_start, nbr, dia, pairs.pair_j, pairs.start, pairs.rows)
+        inlet = (contacts._walls_optional if laws.optional_terms(p) else contacts._walls_plain)(grains, lo, hi, p,
+                                                                                                 pairs.walls)
+        blocks.append((lo, hi, m, int(inlet)))
+        lo = hi
+    blocks = np.array(blocks, dtype=np.int64)
+    single = contacts.pair_buffers(0)
+    runs = {"single_loop": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, single),
+            "passes": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs)}
+    for k, name in enumerate(PASSES):
+        runs[name] = lambda k=k: _run_pass(k, calls, grains, nbr_start, nbr, p, pairs, blocks)
+    times = {name: [] for name in runs}
+    for name, run in runs.items():
+        run()  # compiled, caches warm
+    for _ in range(repeats):  # interleaved, so that a change of the machine's load hits all alike
+        for name, run in runs.items():
+            times[name].append(_timed(run) / calls)
+    out = {name: statistics.median(t) for name, t in times.items()}
+    out["passes_speedup"] = statistics.median(a / b for a, b in zip(times["single_loop"], times["passes"]))
+    contacts.evaluate_contacts(grains, n, nbr_start, nbr, p, diag, chunks, pairs)  # the state's forces as they were
+    out["blocks"] = len(blocks)
+    return out
 
 
 def measure_rate(sim: Simulation, steps: int, repeats: int) -> list[float]:
@@ -185,15 +280,32 @@ def _timed(call) -> float:
     return time.perf_counter() - start
 
 
-def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1) -> dict:
-    """Build, settle and time the standard case; returns the numbers it prints."""
+def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1,
+        kernels: bool = False, passes: bool = False) -> dict:
+    """Build, settle and time the standard case; returns the numbers it prints.
+
+    ns_per_contact: a whole step's time over the touching contacts (grain pairs plus cylinder and
+    inlet contacts, counted at the end of the timed steps). With `kernels` also the contact forces
+    alone and each of their passes, per call and per contact (kernels_s, kernels_ns_per_contact).
+    """
     sim = settled_simulation(threads=threads)
+    sim.set_contact_passes(passes)
     rates = measure_rate(sim, steps, repeats)
-    result = {"threads": threads, "grains": sim.n_particles, "contacts_per_grain": round(contacts_per_grain(sim), 3),
+    rate = statistics.median(rates)
+    count = contact_count(sim)
+    contacts = count["pairs"] + count["walls"]
+    result = {"threads": threads, "contact_passes": passes, "grains": sim.n_particles,
+              "contacts_per_grain": round(contacts_per_grain(sim), 3),
               "time_step_s": sim.dt, "steps_per_repeat": steps, "repeats": repeats,
-              "particle_steps_per_s_median": statistics.median(rates),
+              "particle_steps_per_s_median": rate,
               "particle_steps_per_s_all": [round(r) for r in rates],
-              "wall_s_per_simulated_s": sim.n_particles / statistics.median(rates) / sim.dt}
+              "wall_s_per_simulated_s": sim.n_particles / rate / sim.dt,
+              "contacts": count, "ns_per_contact": 1e9 * sim.n_particles / rate / contacts}
+    if kernels:
+        seconds = time_contact_kernels(sim, max(1, steps // 4), repeats)
+        result["kernels_s"] = seconds
+        result["kernels_ns_per_contact"] = {k: 1e9 * v / contacts for k, v in seconds.items()
+                                            if k not in ("blocks", "passes_speedup")}
     if with_compile:
         result["compile_s"] = compile_time()
     return result
@@ -228,13 +340,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--threads", type=int, default=1,
                         help="threads for the contact forces of the timed steps (default 1)")
+    parser.add_argument("--kernels", action="store_true",
+                        help="also time the one-thread contact forces alone, single loop against passes, "
+                             "and each pass")
+    parser.add_argument("--passes", action="store_true",
+                        help="time the steps with the contact forces in passes (Simulation.set_contact_passes)")
     parser.add_argument("--gas", action="store_true",
                         help="also time the same packing with the gas on and split the cost per step")
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
     _check_arguments(parser, args)
-    result = run(args.steps, args.repeats, not args.no_compile, args.threads)
+    result = run(args.steps, args.repeats, not args.no_compile, args.threads, args.kernels, args.passes)
     if args.gas:
         result["gas"] = gas_cost_split(args.steps, args.repeats)
     if args.write_lammps:
@@ -252,6 +369,15 @@ def main(argv: list[str] | None = None) -> int:
               f"(median of {args.repeats} x {args.steps} steps, "
               f"{args.threads} thread{'s' if args.threads > 1 else ''})")
         print(f"wall s per simulated s {result['wall_s_per_simulated_s']:.1f} (dt = {result['time_step_s']:.3g} s)")
+        c = result["contacts"]
+        print(f"ns per contact         {result['ns_per_contact']:.1f} (a whole step over its {c['pairs']} touching "
+              f"pairs + {c['walls']} wall contacts; {c['list_entries']} list entries)")
+        if "kernels_s" in result:
+            k, ns = result["kernels_s"], result["kernels_ns_per_contact"]
+            print(f"contact forces alone   single loop {k['single_loop'] * 1e6:.1f} us per call, "
+                  f"{ns['single_loop']:.1f} ns per contact; in passes {k['passes'] * 1e6:.1f} us, "
+                  f"{ns['passes']:.1f} ns per contact ({k['blocks']} blocks): passes {k['passes_speedup']:.3f}x")
+            print("  passes, ns/contact   " + ", ".join(f"{name} {ns[name]:.1f}" for name in PASSES))
         if "gas" in result:
             g = result["gas"]
             print(f"with gas, per step     grains {g['grains_s_per_step'] * 1e6:.0f} us, coupling "

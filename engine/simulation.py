@@ -14,7 +14,7 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import params
 from .kernels import slices as S
-from .kernels.contacts import evaluate_contacts
+from .kernels.contacts import PAIR_BLOCK, evaluate_contacts, pair_buffers
 from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
 
@@ -52,6 +52,7 @@ class Simulation:
 
     def __init__(self, case: Case, threads: int = 1):
         self.threads = check_threads(threads)
+        self.contact_passes = False  # set_contact_passes
         self.case = case
         self.model = ContactModel.from_case(case)
         self.feed = Feed(case, self.model.mass, case["run.seed"])
@@ -157,7 +158,27 @@ class Simulation:
         self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
         self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
         self._chunks = self._chunk_arrays(cap)
+        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
         self._dirty = True
+
+    def __getstate__(self) -> dict:
+        """The pickled state (restart_state, checkpoints) leaves out the contact passes' work arrays:
+        every call rewrites them before reading."""
+        state = dict(self.__dict__)
+        state.pop("_pairs", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.contact_passes = state.get("contact_passes", False)  # also a state pickled before them
+        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
+
+    def set_contact_passes(self, on: bool) -> None:
+        """One thread: the contact forces in passes (True) or in the single loop (False, the default,
+        measured faster on the project's shared 2-core machines; docs/performance.md, "The contact
+        kernel"). The two differ in the last bit of the forces."""
+        self.contact_passes = bool(on)
+        self._pairs = pair_buffers(PAIR_BLOCK if on else 0)
 
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
@@ -232,7 +253,7 @@ class Simulation:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
         evaluate_contacts(self._grains(), int(self._n[0]), self._nbr_start, self._nbr, self._p, self._diag,
-                          self._chunks)
+                          self._chunks, self._pairs)
         self._dirty = False
 
     def _rebuild(self) -> None:
@@ -260,12 +281,12 @@ class Simulation:
             if self._dirty:
                 self._prepare()
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
-                            self.gas.arrays(), self._chunks)
+                            self.gas.arrays(), self._chunks, self._pairs)
             if self._counters[params.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
-                            self._diag, self._chunks)
+                            self._diag, self._chunks, self._pairs)
                 taken += 1
             self._steps += taken
             remaining -= taken

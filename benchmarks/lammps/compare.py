@@ -9,7 +9,9 @@
    in.tube for N steps on the same packing; both pinned to one core (taskset), OMP_NUM_THREADS =
    NUMBA_NUM_THREADS = 1. The vCPUs are shared and noisy, so the two codes alternate in one run.
 3. Particle-steps per second: plugsim from its JSON; LAMMPS from "Loop time of T on 1 procs for N
-   steps with A atoms" as N A / T. Both time only the time loop (no set-up, no I/O).
+   steps with A atoms" as N A / T. Both time only the time loop (no set-up, no I/O). ns per contact:
+   a step's time over the touching contacts (grain pairs + cylinder and inlet contacts) that
+   plugsim counts at the end of its run, for both codes (the same packing, the same steps).
 4. Every LAMMPS run is checked: no lost atoms, same grain count and steps as plugsim, wall overlaps
    below 1 % of d, speeds bounded, finite energies. Problems make the exit status 1.
 
@@ -350,13 +352,17 @@ def compare(args, lmp: str, cpu: int | None, env: dict, workdir: Path) -> int:
                     "pinned_cpu": cpu, "loadavg_start": load_start, "loadavg_end": load_end},
         "grains": n_grains, "steps": args.steps, "repeats": args.repeats, "time_step_s": params["dt"],
         "plugsim": {"particle_steps_per_s_median": ours_med, "particle_steps_per_s_all": ours_rates,
-                    "contacts_per_grain": [o["contacts_per_grain"] for o in ours_runs]},
+                    "contacts_per_grain": [o["contacts_per_grain"] for o in ours_runs],
+                    "contacts": [o.get("contacts") for o in ours_runs]},
         "lammps": {"binary": lmp, "version": lammps_runs[0]["version"], "debian_package": deb,
                    "particle_steps_per_s_median": lammps_med, "particle_steps_per_s_all": lammps_rates,
                    "loop_seconds_all": [r["seconds"] for r in lammps_runs],
                    "contacts_per_grain": [r["contacts"].get("v_cpg") for r in lammps_runs],
                    "stability": summaries[-1], "variables": var},
         "ratio_plugsim_over_lammps": ours_med / lammps_med,
+        # a step's time over its touching contacts (grain pairs + cylinder and inlet contacts), both
+        # codes over plugsim's count at the end of each of its runs (the same packing and steps)
+        "ns_per_contact": ns_per_contact(ours_runs, lammps_rates),
         "ratio_per_pair": [o / l for o, l in zip(ours_rates, lammps_rates)],
         "law_check": law, "problems": problems,
     }
@@ -365,6 +371,19 @@ def compare(args, lmp: str, cpu: int | None, env: dict, workdir: Path) -> int:
     else:
         print_table(result)
     return 1 if problems else 0
+
+
+def ns_per_contact(ours_runs: list[dict], lammps_rates: list[float]) -> dict | None:
+    """Median ns per touching contact of a step, plugsim and LAMMPS (None with a bench that does not
+    count its contacts)."""
+    counts = [o.get("contacts") for o in ours_runs]
+    if not all(counts):
+        return None
+    per = lambda rate, o, c: 1e9 * o["grains"] / rate / (c["pairs"] + c["walls"])  # noqa: E731
+    return {"plugsim": statistics.median(per(o["particle_steps_per_s_median"], o, c)
+                                         for o, c in zip(ours_runs, counts)),
+            "lammps": statistics.median(per(rate, o, c) for rate, o, c in zip(lammps_rates, ours_runs, counts)),
+            "contacts": counts[-1]}
 
 
 def print_table(r: dict) -> None:
@@ -381,6 +400,10 @@ def print_table(r: dict) -> None:
           f"{fmt(lm['particle_steps_per_s_all'])}")
     print(f"{'ratio plugsim/LAMMPS':24}{r['ratio_plugsim_over_lammps']:12.2f}   per pair: "
           + " ".join(f"{x:.2f}" for x in r["ratio_per_pair"]))
+    if r.get("ns_per_contact"):
+        ns = r["ns_per_contact"]
+        print(f"{'ns per contact':24}{ns['plugsim']:12.1f}   LAMMPS {ns['lammps']:.1f} (a step over the "
+              f"{ns['contacts']['pairs']} touching pairs + {ns['contacts']['walls']} wall contacts)")
     cp_o = statistics.median(o["contacts_per_grain"])
     cp_l = statistics.median([c for c in lm["contacts_per_grain"] if c is not None] or [float("nan")])
     print(f"{'contacts per grain':24}{cp_o:12.2f}   LAMMPS {cp_l:.2f} (walls included, after the run)")

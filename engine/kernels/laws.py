@@ -46,14 +46,28 @@ def optional_terms(p):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
+def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt, branchless=False):
     """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
-    if the contact is in its viscous (sticking) branch, else 0."""
+    if the contact is in its viscous (sticking) branch, else 0.
+
+    `branchless` (a compile-time constant of the caller): the same values by selects instead of a
+    branch, so that a loop over contacts vectorises; at vt = 0 the division is then by 1 and its
+    result unused (no division by zero in any error model); a nan slip stays a nan force."""
     vcn = vcx * nx + vcy * ny + vcz * nz
     vtx = vcx - vcn * nx
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
     vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
+    if branchless:
+        slipping = not (vt <= 0.0)
+        fv = gt * vt
+        fc = mu * fn
+        ft = min(fc, fv)
+        s = -ft / (vt if slipping else 1.0)
+        g = gt if fv < fc else 0.0
+        if slipping:
+            return s * vtx, s * vty, s * vtz, g
+        return 0.0, 0.0, 0.0, gt
     if vt <= 0.0:
         return 0.0, 0.0, 0.0, gt
     fv = gt * vt
@@ -64,9 +78,16 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def rolling_torque(fn, wx, wy, wz, r, mu_r, cap):
-    """Rolling-resistance torque on the first body against the relative spin w, N m."""
+def rolling_torque(fn, wx, wy, wz, r, mu_r, cap, branchless=False):
+    """Rolling-resistance torque on the first body against the relative spin w, N m (`branchless`:
+    see tangential)."""
     w = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if branchless:
+        spinning = not (w <= 0.0)
+        s = -min(mu_r * r * fn, cap * w) / (w if spinning else 1.0)
+        if spinning:
+            return s * wx, s * wy, s * wz
+        return 0.0, 0.0, 0.0
     if w <= 0.0:
         return 0.0, 0.0, 0.0
     s = -min(mu_r * r * fn, cap * w) / w
@@ -81,7 +102,7 @@ def normal_force(delta, vn, c):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional):
+def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional, branchless=False):
     """Force and torques of a contact with normal force fn > 0 on the first body, along the unit
     normal n (first -> second); v the relative velocity v1 - v2, w the spin sum w1 + w2 of the
     contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
@@ -90,11 +111,12 @@ def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, opt
     first's tangential torque minus its rolling torque; the second's force is -F), and gamma_t if
     the tangential force is in its viscous branch (else 0). `optional` adds the optional terms
     (optional_terms); it is a compile-time constant of the calling loop (contacts.py compiles one
-    loop with them and one without), so that the loop without them keeps its arithmetic and speed.
+    loop with them and one without), so that the loop without them keeps its arithmetic and speed;
+    `branchless` likewise (tangential).
     """
     r, _, _, mu, gt, mu_r, cap = c
     ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt)
+                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt, branchless)
     fx = -fn * nx + ftx
     fy = -fn * ny + fty
     fz = -fn * nz + ftz
@@ -103,21 +125,27 @@ def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, opt
     ty = r * (nz * ftx - nx * ftz)
     tz = r * (nx * fty - ny * ftx)
     if optional:  # each term is zero when its key is 0
-        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap)
+        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap, branchless)
         return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
     return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional):
+def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional, branchless=False):
     """Contact of a grain (velocity v, spin w) with a wall of outward normal n (grain -> wall) at
     overlap delta (m); c = wall_constants.
 
     Returns (F_n, F, T, g): the normal force magnitude (0 when separating, then all zero), force
     and torque on the grain, and gamma_t if the tangential force is in its viscous branch (else 0).
-    Inlined with constant normals, the zero components fold away.
+    Inlined with constant normals, the zero components fold away. `branchless`: see tangential.
     """
     fn = normal_force(delta, vx * nx + vy * ny + vz * nz, c)
+    if branchless:
+        fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
+                                                            c, optional, True)
+        if not (fn <= 0.0):  # selects: a nan fn keeps its values
+            return fn, fx, fy, fz, tx, ty, tz, g
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if fn <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,

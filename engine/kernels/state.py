@@ -19,3 +19,11 @@ Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nb
 # contacts per grain.
 Chunks = namedtuple("Chunks",
                     "spill_force spill_torque spill_viscous_damping bounds chunk_diag contact_count")
+
+# Work arrays of the one-thread contact passes (contacts.contact_forces; empty arrays: the single
+# loop runs), for one block of grains: per touching pair, compacted from the half list in list
+# order, its partner j (pair_j) and one row of `rows` per quantity (contacts.PAIR_ROWS: inputs
+# gathered contiguously, outputs of the pair law); each grain's first touching pair (start); per
+# grain one row of `walls` per input and result of its cylinder and inlet contact
+# (contacts.WALL_ROWS). Capacity: a block's list entries and grains (contacts.pair_buffers).
+Pairs = namedtuple("Pairs", "pair_j start rows walls")

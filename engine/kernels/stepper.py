@@ -117,13 +117,13 @@ def _kick_drift(grains, n, p, kick_dt, counters):
 
 
 @nb.njit(cache=True)
-def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks):
+def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks, pairs):
     """Take up to nsteps steps. Returns the number taken (fewer on overflow or failure).
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
     The feed piston always moves (the papers' enforced mass flow); when it has pressed a grain deeper
     than p[FEED_MAX_OVERLAP] for p[FEED_BLOCK_STEPS] steps in a row, the step is completed and
-    counters[STATUS] = BLOCKED. `grains`, `nbrs` and `chunks` are the bundles of state.py, `gas`
+    counters[STATUS] = BLOCKED. `grains`, `nbrs`, `chunks` and `pairs` are the bundles of state.py, `gas`
     a gas.GasArrays.
     """
     n = state_n[0]
@@ -141,7 +141,7 @@ def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks):
         if p[params.GAS_ON] > 0.0 and counters[params.STEPS] % int(p[params.GAS_INTERVAL]) == 0:
             couple(grains.pos, grains.vel, n, gas, dt * p[params.GAS_INTERVAL], 1, p[params.GAS_THETA],
                    p[params.FEED_VOLUME_RATE], grains.drag, False)
-        _forces(grains, n, p, nbrs, counters, diag, chunks)
+        _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
         taken += 1
         kick_dt = dt
         if diag[params.DIAG_FEED_OVERLAP] <= p[params.FEED_MAX_OVERLAP]:
@@ -158,9 +158,9 @@ def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks):
 
 
 @nb.njit(cache=True)
-def _forces(grains, n, p, nbrs, counters, diag, chunks):
+def _forces(grains, n, p, nbrs, counters, diag, chunks, pairs):
     """Forces at the new positions; ends a step except for its closing half kick."""
-    evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks)
+    evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks, pairs)
     # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
     # so that the run guard sees every step, not only a frame's last
     diag[params.DIAG_RUNNING_MAX] = max(diag[params.DIAG_RUNNING_MAX], diag[params.DIAG_OVERLAP],
@@ -178,7 +178,7 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks):
 
 
 @nb.njit(cache=True)
-def finish_step(grains, n, p, nbrs, counters, diag, chunks):
+def finish_step(grains, n, p, nbrs, counters, diag, chunks, pairs):
     """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
-    _forces(grains, n, p, nbrs, counters, diag, chunks)
+    _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
     _kick(grains, n, p, 0.5 * p[params.DT])

@@ -1,5 +1,6 @@
 """Contact forces on threads: the chunked sum equals the serial one up to rounding, runs stay
-reproducible, bad thread counts are refused (momentum across chunk borders: test_grains.py)."""
+reproducible, bad thread counts are refused (momentum across chunk borders: test_grains.py).
+The one-thread contact passes equal the single loop up to rounding."""
 
 import numba
 import numpy as np
@@ -9,7 +10,7 @@ from engine import Case, Simulation
 from engine.bench import settled_simulation
 from engine.cli import main as cli_main
 from engine.kernels import params
-from engine.kernels.contacts import contact_forces, contact_forces_chunked
+from engine.kernels.contacts import contact_forces, contact_forces_chunked, pair_buffers
 from engine.kernels.state import Chunks
 
 TWO_THREADS = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="needs 2 numba threads")
@@ -21,7 +22,7 @@ def packing():
     return settled_simulation()
 
 
-def _forces(sim, nchunks):
+def _forces(sim, nchunks, pairs=None):
     n, cap = sim.n_particles, len(sim._pos)
     force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 3)), np.zeros(cap), np.zeros(3)
     damping = np.zeros(cap)  # the sum of gamma_t of each grain's viscous contacts (numerics.implicit_spin)
@@ -30,7 +31,7 @@ def _forces(sim, nchunks):
     grains = sim._grains()._replace(force=force, torque=torque, viscous_damping=damping, wall_normal=wall)
     args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
-        contact_forces(*args)
+        contact_forces(*args, pair_buffers(0) if pairs is None else pairs)
         return force[:n], torque[:n], damping[:n], wall[:n], diag, None
     spill_f, spill_t = np.zeros((nchunks, cap, 3)), np.zeros((nchunks, cap, 3))
     spill_d = np.zeros((nchunks, cap))
@@ -57,6 +58,26 @@ def test_chunked_contact_forces_equal_the_serial_sum(packing, nchunks):
     np.testing.assert_allclose(g2, g1, rtol=1e-14)
     np.testing.assert_array_equal(w2, w1)  # walls are summed per grain, in one chunk: identical
     np.testing.assert_array_equal(d2[:2], d1[:2])
+
+
+@pytest.mark.parametrize("block", [64, 512])
+def test_contact_passes_equal_the_single_loop(packing, block):
+    f1, t1, g1, w1, d1, _ = _forces(packing, 1)
+    f2, t2, g2, w2, d2, _ = _forces(packing, 1, pair_buffers(block))
+    # the same sums in the same order; only LLVM's fused multiply-adds in the vectorised law differ
+    np.testing.assert_allclose(f2, f1, rtol=0, atol=1e-12 * np.abs(f1).max())
+    np.testing.assert_allclose(t2, t1, rtol=0, atol=1e-12 * np.abs(t1).max())
+    np.testing.assert_allclose(g2, g1, rtol=1e-14)
+    np.testing.assert_allclose(w2, w1, rtol=1e-12, atol=1e-12 * np.abs(w1).max())
+    np.testing.assert_array_equal(d2[:2], d1[:2])  # the overlap guard sees the same overlaps
+
+
+def test_run_with_contact_passes_follows_the_single_loop():
+    passes, single = settled_simulation(), settled_simulation()
+    passes.set_contact_passes(True)
+    for sim in (passes, single):
+        sim.advance(400 * sim.dt)
+    assert np.abs(passes.positions - single.positions).max() < 1e-13
 
 
 @TWO_THREADS
