@@ -198,6 +198,19 @@ def test_a_finished_case_is_never_replaced_unasked(tmp_path):
         assert ds.sizes["time"] == 6 and ds.attrs["resumed"] == 0
 
 
+def _wait_for_cpu(proc, seconds, timeout=120):
+    """Wait until `proc` has used `seconds` of CPU (utime + stime from /proc): a wall-clock sleep
+    lets a loaded machine interrupt a run before it has loaded its kernels and done a frame."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        fields = Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        if (int(fields[11]) + int(fields[12])) / ticks >= seconds:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"the run did not use {seconds} s of CPU within {timeout} s")
+
+
 def _wait_for(proc, text, timeout=120):
     """Read proc's stderr lines until one contains `text`; return the lines read."""
     lines, deadline = [], time.monotonic() + timeout
@@ -226,7 +239,7 @@ def test_sigterm_and_sigint_save_a_checkpoint_and_resume_to_the_uninterrupted_re
                                 env=env)
         started = _wait_for(proc, "case x.nc: dt")  # the last line before the first frame
         assert ("resuming" in started[0]) == (signum == signal.SIGINT), started
-        time.sleep(1.0)  # some frames; seconds of CPU time remain (2 s simulated cost ~3 s)
+        _wait_for_cpu(proc, 1.5)  # kernels loaded and some frames; seconds of CPU time remain
         proc.send_signal(signum)
         rest = proc.stderr.read().strip().splitlines()
         assert proc.wait(timeout=60) == 128 + signum, rest
