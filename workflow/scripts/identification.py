@@ -14,7 +14,8 @@ standard errors combined (`baselines`: sweep -> its reading keys at their first 
 
 Standalone:
     python workflow/scripts/identification.py --input statements=resources/paper_statements.yaml \
-        --input tables=results/curves/id_h_default.csv --output csv=/tmp/id.csv \
+        --input tables=results/curves/id_h_default.csv,results/curves/id_v_default.csv \
+        --output csv=/tmp/id.csv \
         --output md=/tmp/id.md --output png=/tmp/id.png \
         --params 'compare=[{"statement": "H-dp-default", "sweep": "id_h_default"}]' \
         --params 'readings=["gas.face_permeability"]'
@@ -195,7 +196,8 @@ def figure(df: pd.DataFrame, path) -> None:
 def main(smk) -> None:
     log = setup_logging(smk)
     statements = yaml.safe_load(Path(smk.input.statements).read_text())
-    paths = [smk.input.tables] if isinstance(smk.input.tables, str) else smk.input.tables  # one, standalone
+    tables = smk.input.tables  # standalone: one string, tables=A.csv,B.csv
+    paths = tables.split(",") if isinstance(tables, str) else tables
     tables = {Path(p).stem: read_table(p) for p in paths}
     df = table(statements, tables, list(smk.params.compare), list(smk.params.readings),
                dict(smk.params.get("baselines") or {}))
