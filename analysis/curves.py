@@ -7,6 +7,7 @@ one row per case, against the swept parameters.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Iterable
 
@@ -145,6 +146,19 @@ def travel_speed(slugs: pd.DataFrame, tube_length: float, t_start: float | None 
     return float(np.median(v)) if v.size else float("nan")
 
 
+def travel_speed_sem(slugs: pd.DataFrame, tube_length: float, t_start: float | None = None) -> float:
+    """Standard error (m/s) of travel_speed: the slugs are the independent samples (the frames of
+    one slug are not), so each slug seen mid-tube gives its median speed, and the error of the
+    median is sqrt(pi/2) times that of a mean over those slugs; NaN with fewer than two slugs."""
+    t0 = -np.inf if t_start is None else t_start
+    mid = (slugs["time"] >= t0) & (np.abs(slugs["x_center"] - tube_length / 2) <= tube_length / 4)
+    seen = slugs.loc[mid & np.isfinite(slugs["slug_velocity"])]
+    per_slug = seen.groupby("slug_id")["slug_velocity"].median().to_numpy(dtype=np.float64)
+    if per_slug.size < 2:
+        return float("nan")
+    return float(math.sqrt(math.pi / 2) * per_slug.std(ddof=1) / math.sqrt(per_slug.size))
+
+
 def _slope(t, values) -> float:
     """Least-squares slope of values against t (units per s); NaN for fewer than two points."""
     return float(np.polyfit(t, values, 1)[0]) if len(t) > 1 else float("nan")
@@ -157,7 +171,7 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
 
     Results: steady_pressure_drop's (pressure drop and error, its correlation time and whether it
     converged, window t_start, t_end), dense_fraction, slug_fraction, regime (and what decides it:
-    travel_speed, m/s; delivery), at `position` (default mid-tube): slug_rate (1/s), slug_velocity
+    travel_speed and its error travel_speed_sem, m/s; delivery), at `position` (default mid-tube): slug_rate (1/s), slug_velocity
     (m/s, travel speed of the tracked centres), max_velocity (m/s, the papers' mean maximal
     granular velocity, per passage) and max_velocity_time (time-weighted), slug_length (core) and
     slug_length_total (with the ends, the papers' reading; m), each with its standard error (_sem);
@@ -199,6 +213,7 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     row["delivery"] = row.get("mass_flow_out", nan) / row["mass_flow_fed"] if row["mass_flow_fed"] else nan
     row["stop_reason"] = str(ds.attrs.get("stop_reason", ""))
     row["travel_speed"] = travel_speed(slugs, geo.tube_length, t0) if len(slugs) else nan
+    row["travel_speed_sem"] = travel_speed_sem(slugs, geo.tube_length, t0) if len(slugs) else nan
     row["regime"] = regime(fractions["dense_fraction"], row["slug_rate"], row["travel_speed"],
                            row["delivery"], geo.vertical, row["stop_reason"])
     return row
@@ -225,14 +240,15 @@ def sweep_table(cases: Iterable, parameters: Iterable[str] | None = None, **kwar
     results = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time",
                "pressure_drop_converged", "regime", "t_start", "t_end", "window",
                "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "travel_speed",
-               "max_velocity", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
+               "travel_speed_sem", "max_velocity", "max_velocity_sem", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
                "mass_flow_out", "mass_flow_fed", "delivery", "stop_reason"]
     columns = ["case", *parameters, *[c for c in results if c in table]]
     out = table[columns].sort_values(list(parameters) or ["case"]).reset_index(drop=True)
     out.attrs["units"] = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1", "t_start": "s",
                           "t_end": "s", "pressure_drop_correlation_time": "s", "slug_rate": "s-1",
-                          "slug_velocity": "m s-1", "travel_speed": "m s-1", "max_velocity": "m s-1",
-                          "slug_length": "m", "slug_length_total": "m", "mass_flow_out": "kg s-1",
+                          "slug_velocity": "m s-1", "travel_speed": "m s-1",
+                          "travel_speed_sem": "m s-1", "max_velocity": "m s-1",
+                          "max_velocity_sem": "m s-1", "slug_length": "m", "slug_length_total": "m", "mass_flow_out": "kg s-1",
                           "mass_flow_fed": "kg s-1", "delivery": "1"}
     return out
 

@@ -3,13 +3,14 @@
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from analysis import (case_summary, mean_error, mser_start, regime, steady_pressure_drop,
                       sweep_table)
 from analysis import curves
 from analysis.casefile import seconds
-from analysis.curves import BLOCKED_DELIVERY, BULK_FILL, MIN_SLUG_RATE, STICKING_SPEED
+from analysis.curves import BLOCKED_DELIVERY, BULK_FILL, MIN_SLUG_RATE, STICKING_SPEED, travel_speed_sem
 
 from . import synthetic as S
 
@@ -102,6 +103,7 @@ def test_case_summary_reports_the_known_slug_numbers():
     assert summary["max_velocity"] == pytest.approx(0.3, abs=1e-12)
     assert summary["max_velocity_time"] == pytest.approx(0.3, abs=1e-12)
     assert summary["travel_speed"] == pytest.approx(0.3, rel=5e-3)
+    assert summary["travel_speed_sem"] < 5e-3 * 0.3  # every slug travels at 0.3 m/s
     assert summary["delivery"] == pytest.approx(1.0, rel=1e-9)  # mass_out rises at the feed rate
     # slugs cover length/spacing = 0.05 / 0.225 of the tube, +- one slug's part at the ends
     assert summary["dense_fraction"] == pytest.approx(0.05 / 0.225, abs=0.05 / S.L_TUBE)
@@ -207,3 +209,17 @@ def test_steady_window_starts_after_the_tube_has_filled():
     assert steady_pressure_drop(ds)["t_start"] >= 3.8
     ds["n_particles"] = ("time", np.full(t.size, 3000.0))  # a warm start: filled from the start
     assert curves.filled_index(ds) == 0
+
+
+def test_travel_speed_error_counts_slugs_not_frames():
+    # four slugs at 0.2-0.5 m/s, seen in 3 to 30 frames each mid-tube (x = 0.5 m of a 1 m tube),
+    # plus frames near the inlet that must not count: the error is that of the median over the
+    # four slugs, sqrt(pi/2) s / sqrt(4) with s the standard deviation of their speeds
+    rows = [{"time": 1.0 + 0.01 * k, "slug_id": i, "x_center": 0.5, "slug_velocity": v}
+            for i, (v, frames) in enumerate([(0.2, 3), (0.3, 30), (0.4, 10), (0.5, 5)])
+            for k in range(frames)]
+    rows += [{"time": 1.0, "slug_id": 9, "x_center": 0.05, "slug_velocity": 3.0}]
+    slugs = pd.DataFrame(rows)
+    expected = math.sqrt(math.pi / 2) * np.std([0.2, 0.3, 0.4, 0.5], ddof=1) / 2
+    assert travel_speed_sem(slugs, 1.0) == pytest.approx(expected, rel=1e-12)
+    assert math.isnan(travel_speed_sem(slugs[slugs["slug_id"] == 1], 1.0))  # one slug: no spread

@@ -15,13 +15,13 @@ from _helpers import read_json, setup_logging, snakemake_or_cli, write_table
 RESULTS = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time", "regime",
            "t_start", "t_end", "window", "stop_reason",
            "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "travel_speed",
-           "max_velocity", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
+           "travel_speed_sem", "max_velocity", "max_velocity_sem", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
            "mass_flow_out", "mass_flow_fed", "delivery", "n_slugs", "dashpot_resolved",
            "initial_state", "vertical"]
 UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1",
          "pressure_drop_correlation_time": "s", "t_start": "s", "t_end": "s",
          "slug_rate": "s-1", "slug_velocity": "m s-1", "travel_speed": "m s-1",
-         "max_velocity": "m s-1", "slug_length": "m", "slug_length_total": "m",
+         "travel_speed_sem": "m s-1", "max_velocity": "m s-1", "max_velocity_sem": "m s-1", "slug_length": "m", "slug_length_total": "m",
          "mass_flow_out": "kg s-1", "mass_flow_fed": "kg s-1", "delivery": "1"}
 
 

@@ -6,7 +6,8 @@ never adjusted), ours +- standard error from the sweep's curve table, ratio and 
 validation rule's test (ours +- 2 standard errors overlapping the paper's interval). Measures:
 pressure_drop, n_particles (steady means), regime (the case's label against `expected`),
 max_velocity (the papers' mean maximal granular velocity in a slug, per passage), travel_speed
-(the speed at which slugs and plugs travel; both without an error bar in the curve table) and
+(the median speed at which slugs and plugs travel mid-tube; its error from the spread between
+slugs) and
 argmax (the value of the statement's `x` with the largest pressure drop within the reading's
 points). A blocked case is "no (blocked)" whatever its numbers. In a one_at_a_time sweep each
 reading's effect is ours less the baseline reading's ours on the same statement, with the two
@@ -34,8 +35,8 @@ from validation import TO_UNIT, paper_interval, paper_text
 NAN = float("nan")
 COLUMN = {"pressure_drop": ("pressure_drop", "pressure_drop_sem"),
           "n_particles": ("n_particles", "n_particles_sem"),
-          "max_velocity": ("max_velocity", None),
-          "travel_speed": ("travel_speed", None)}
+          "max_velocity": ("max_velocity", "max_velocity_sem"),
+          "travel_speed": ("travel_speed", "travel_speed_sem")}
 
 
 def reading_label(row: pd.Series, readings: list[str], baseline: dict | None = None) -> str:
@@ -87,7 +88,7 @@ def compare_rows(st: dict, rows: pd.DataFrame, readings: list[str], measure: str
             column, sem = COLUMN[measure]
             value = float(group[column].iloc[0]) * TO_UNIT.get(st.get("unit", "1"), 1.0)
             error = (float(group[sem].iloc[0]) * TO_UNIT.get(st.get("unit", "1"), 1.0)
-                     if sem else NAN)
+                     if sem and sem in group else NAN)
         mid = paper_interval(st)[2]
         within = verdict(value, error, st) if math.isfinite(value) else "not available"
         if measure != "argmax" and "regime" in group and group["regime"].iloc[0] == "blocked":
