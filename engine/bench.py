@@ -23,6 +23,7 @@ import numpy as np
 from .case import Case
 from .feed import layer_template
 from .kernels import contacts, laws, params
+from .parser import OneLineParser
 from .simulation import Simulation
 
 PLUG_LENGTH = 0.06  # m
@@ -331,8 +332,6 @@ def _check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .cli import OneLineParser
-
     parser = OneLineParser(prog="plugsim bench", description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="steps per repeat (default 2000)")
     parser.add_argument("--repeats", type=int, default=5, help="repeats; the median is reported")

@@ -10,13 +10,7 @@ import sys
 
 from . import __version__
 from .case import KEYS, Case, CaseError, keys_markdown
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with usage errors as one line on stderr (exit 2), like every other bad input."""
-
-    def error(self, message: str):
-        self.exit(2, f"{self.prog}: error: {message} (--help for usage)\n")
+from .parser import OneLineParser
 
 
 def _keys(args: argparse.Namespace) -> int:
