@@ -125,3 +125,41 @@ def mser_start(values, batch: int = 5) -> int:
     score = var / rest
     k = int(np.argmin(score[: n // 2 + 1]))
     return k * batch
+
+
+def required_length(values, target: float, interval: float = 1.0,
+                    min_correlation_times: float = MIN_CORRELATION_TIMES) -> float:
+    """Length (s) of a window of this series whose mean has standard error `target` (the series'
+    units), by mean_error's own estimate: its error sqrt(var tau / n) falls as 1/sqrt(n) with var
+    and tau those of the series given, so n = var tau / target^2 samples, and at least
+    min_correlation_times tau (the estimator gives no error before). NaN when the series' own
+    estimate is not converged (too short to know its tau); 0 for a constant series."""
+    if not target > 0:
+        raise ValueError(f"target standard error {target!r} must be > 0")
+    est = mean_error(values, interval, min_correlation_times)
+    if not est.converged:
+        return math.nan
+    if est.error == 0.0:
+        return 0.0
+    samples = est.error**2 * est.n / target**2  # var tau / target^2
+    return max(samples, min_correlation_times * max(est.tau, 1.0)) * interval
+
+
+def first_reached(values, target: float, interval: float = 1.0,
+                  min_correlation_times: float = MIN_CORRELATION_TIMES, every: int = 1) -> float:
+    """Length (s) of the shortest leading part of the series, tried every `every` samples, whose
+    mean_error is converged with an error at most `target`: what a stop testing the growing window
+    would see. NaN when no part reaches it. It comes early on average: the first time a noisy
+    estimate dips below a bound (docs/decisions/0014-steady-tolerance-3-percent.md); required_length
+    is the estimate to plan on."""
+    if not target > 0:
+        raise ValueError(f"target standard error {target!r} must be > 0")
+    x = np.asarray(values, dtype=np.float64)
+    ends = list(range(max(every, 2), x.size + 1, every))
+    if x.size >= 2 and (not ends or ends[-1] != x.size):
+        ends.append(x.size)  # the whole series is always tried
+    for n in ends:
+        est = mean_error(x[:n], interval, min_correlation_times)
+        if est.converged and est.error <= target:
+            return n * interval
+    return math.nan

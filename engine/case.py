@@ -206,7 +206,18 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("run.steady_rel_error", 0.03, "1",
         "Steady when the standard error of the mean pressure drop over the window (from its "
         "integrated autocorrelation time, analysis.timeseries.mean_error) is below this fraction "
-        "of the mean.", low=0.0, low_open=True, high=1.0),
+        "of the mean (unless run.steady_pressure_drop_error is set; 1 asks nothing of it but "
+        "convergence).", low=0.0, low_open=True, high=1.0),
+    Key("run.steady_pressure_drop_error", 0.0, "Pa m-1",
+        "When > 0: steady only when the standard error of the mean pressure drop per tube length "
+        "is at most this, instead of run.steady_rel_error of the mean: the precision a statement "
+        "asks (half its tolerance, e.g. 25 Pa/m for +-0.5 hPa/m; "
+        "benchmarks/studies/run_lengths.py). 0: the relative error decides.",
+        low=0.0, high=1e6),
+    Key("run.steady_n_particles_error", 0.0, "1",
+        "When > 0: steady only when the standard error of the mean number of grains in the tube "
+        "over the window is at most this as well (e.g. 25 for a count quoted +-50). 0: no "
+        "precision asked of it beyond the hold-up test.", low=0.0, high=1e9),
     Key("run.steady_min_correlation_times", 50.0, "1",
         "Steady only when the window covers at least this many integrated autocorrelation times "
         "of the pressure drop, the mass flows and the grains in the tube; the analysis gives no "

@@ -138,7 +138,10 @@ def steady_window(recorder: Recorder, case: Case) -> SteadyWindow | None:
     Candidate starts open run.steady_settle after the first grains leave the tube, then every half
     run.steady_min_window; a window is at least that long. It is steady when (a) the standard
     error of its mean pressure drop (analysis.timeseries.mean_error) is below run.steady_rel_error
-    of the mean, the window covering run.steady_min_correlation_times correlation times, and (b)
+    of the mean, or with run.steady_pressure_drop_error set at most that (per tube length), the
+    window covering run.steady_min_correlation_times correlation times; with
+    run.steady_n_particles_error set, the standard error of the mean grains in the tube at most
+    that too; and (b)
     the tube neither fills nor drains: grains go in and come out (mean outflow above twice its
     error), the mean outflow equals the mean inflow within twice their combined error, or within
     one grain over the window (the mass books count whole grains), and the mean grains in the
@@ -153,6 +156,7 @@ def steady_window(recorder: Recorder, case: Case) -> SteadyWindow | None:
         return None
     first = t[np.argmax(out > 0)] + case["run.steady_settle"]
     length, tol = case["run.steady_min_window"], case["run.steady_rel_error"]
+    absolute = case["run.steady_pressure_drop_error"] * case["tube.length"]  # Pa/m -> Pa (the series')
     times, interval = case["run.steady_min_correlation_times"], case["output.interval"]
     dp = np.asarray(recorder.series["pressure_drop"])
     into = np.asarray(recorder.series["mass_in"])
@@ -161,21 +165,23 @@ def steady_window(recorder: Recorder, case: Case) -> SteadyWindow | None:
     for start in np.arange(first, t[-1] - length + 1e-9, 0.5 * length):
         k = int(np.argmax(t >= start))
         pressure = mean_error(dp[k:], interval, times)
-        if not (pressure.converged and pressure.mean > 0 and pressure.error < tol * pressure.mean):
+        precise = pressure.error <= absolute if absolute > 0 else pressure.error < tol * pressure.mean
+        if not (pressure.converged and pressure.mean > 0 and precise):
             continue
         outflow = mean_error(np.diff(out[k:]) / interval, interval, times)
         inflow = mean_error(np.diff(into[k:]) / interval, interval, times)
-        if _balanced(outflow, inflow, t[-1] - t[k], grain) and _level(grains[k:], interval, times):
+        if _balanced(outflow, inflow, t[-1] - t[k], grain) and _level(
+                grains[k:], interval, times, case["run.steady_n_particles_error"]):
             return SteadyWindow(float(start), float(t[-1]), pressure, outflow, inflow)
     return None
 
 
-def _level(grains: np.ndarray, interval: float, times: float) -> bool:
+def _level(grains: np.ndarray, interval: float, times: float, precision: float = 0.0) -> bool:
     """The grains in the tube do not drift: the means of the series' halves differ by at most
     twice the error of their difference (2 x the error of the whole mean: each half has half the
-    samples) or by one grain."""
+    samples) or by one grain; with `precision` > 0 the error of the whole mean is at most that."""
     hold = mean_error(grains, interval, times)
-    if not hold.converged:
+    if not hold.converged or (precision > 0 and hold.error > precision):
         return False
     half = len(grains) // 2
     drift = abs(grains[half:].mean() - grains[:half].mean())

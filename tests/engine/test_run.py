@@ -186,6 +186,47 @@ def test_a_correlated_signal_needs_its_correlation_times_and_a_noisy_one_its_err
     assert 0.8 * 11.1 <= stop.end - stop.start <= 1.2 * 11.1  # the error's own ~10 % scatter
 
 
+def test_an_absolute_pressure_drop_precision_decides_instead_of_the_relative_error():
+    # white noise of 100 Pa on 1000 Pa over the 0.525 m tube: 3 % stops the shortest window (2 s,
+    # above); an error of 2.5 Pa (4.76 Pa/m) needs (100 / 2.5)^2 = 1600 frames, 16 s
+    t = np.arange(0, 30, 0.01)
+    dp = 1000 + np.random.default_rng(0).normal(0, 100, t.size)
+    case = Case().with_overrides([*STEADY, f"run.steady_pressure_drop_error={2.5 / 0.525}"])
+    stop = first_steady(case, recorded(t, dp, steady_hold_up(t)))
+    assert stop is not None and stop.pressure_drop.error <= 2.5
+    assert 0.8 * 16 <= stop.end - stop.start <= 1.2 * 16  # the error's own ~10 % scatter, squared
+    # and looser than 3 %: white noise of 1000 Pa reaches 3 % after 11 s (above), 100 Pa/m
+    # (52.5 Pa) after (1000 / 52.5)^2 = 363 frames
+    noisy = 1000 + np.random.default_rng(2).normal(0, 1000, t.size)
+    case = Case().with_overrides([*STEADY, "run.steady_pressure_drop_error=100"])
+    stop = first_steady(case, recorded(t, noisy, steady_hold_up(t)))
+    assert stop is not None and stop.start == pytest.approx(2.0, abs=0.011)
+    assert 0.75 * 3.63 <= stop.end - stop.start <= 1.25 * 3.63
+
+
+def test_a_grain_count_precision_holds_the_stop_until_the_count_is_known():
+    # the hold-up of steady_hold_up: SD 5 grains, tau = 3 frames; an error of 0.2 grains needs
+    # 25 x 3 / 0.04 = 1875 frames (18.75 s), while the pressure drop meets 3 % after 2 s
+    t = np.arange(0, 40, 0.01)
+    dp = 1000 + np.random.default_rng(0).normal(0, 100, t.size)
+    grains = steady_hold_up(t)
+    case = Case().with_overrides([*STEADY, "run.steady_n_particles_error=0.2"])
+    stop = first_steady(case, recorded(t, dp, grains))
+    assert stop is not None
+    k = int(np.searchsorted(t, stop.start - 1e-9))
+    assert mean_error(grains[k:int(round(stop.end / 0.01)) + 1], 0.01).error <= 0.2 + 1e-9
+    assert 0.75 * 18.75 <= stop.end - stop.start <= 1.25 * 18.75  # tau estimated within ~20 %
+    # a pressure drop that never reaches 3 % in 30 s (300 % white noise: 100 s) does not hold up
+    # a case whose statements ask only the grain count (run.steady_rel_error = 1: convergence)
+    t = np.arange(0, 30, 0.01)
+    noisy = 1000 + np.random.default_rng(3).normal(0, 3000, t.size)
+    rec = recorded(t, noisy, steady_hold_up(t))
+    assert first_steady(Case().with_overrides(STEADY), rec) is None
+    only_count = Case().with_overrides([*STEADY, "run.steady_rel_error=1", "run.steady_n_particles_error=0.5"])
+    stop = first_steady(only_count, rec)
+    assert stop is not None and stop.end <= 2.0 + 2 * 3.0  # 300 frames (3 s) after the settle
+
+
 def test_a_tube_still_filling_is_not_steady():
     # the hold-up climbs by 20 grains per second (4 % of the 514 grains/s fed) while the pressure
     # drop is already flat: never steady (the outflow test alone passed it after 2 s); the same

@@ -278,6 +278,27 @@ def test_a_partial_validation_reads_only_what_this_configuration_produced(tmp_pa
     assert item["files"] == {} and "was run with other parameters" in item["pending"]
 
 
+def test_a_key_added_after_a_case_ran_counts_at_its_default(tmp_path, monkeypatch):
+    """A case file written before a key existed records the planned case when the plan leaves
+    that key at its default; set to another value, the key is a difference."""
+    import netCDF4
+    import yaml
+
+    monkeypatch.chdir(tmp_path)
+    plan = Plan(config({"h_default": single()}))
+    key = ("h_default", "base")
+    recorded = yaml.safe_load(plan.cases[key].to_yaml())
+    del recorded["run"]["steady_n_particles_error"]
+    case = Path(paths.case_file(*key))
+    case.parent.mkdir(parents=True)
+    with netCDF4.Dataset(case, "w") as ds:
+        ds.setncattr("config_yaml", yaml.safe_dump(recorded))
+    assert plan.case_differences(key) == []
+    other = Plan(config({"h_default": single(**{"run.steady_n_particles_error": 25.0})}))
+    assert other.case_differences(key) == [
+        "run.steady_n_particles_error = 0.0 there, 25.0 here"]
+
+
 def test_work_precision_refuses_a_reference_that_is_no_point():
     wp = {"benchmarks": {"work_precision": {"h_vs": {"reference": 3.0}}}}
     with pytest.raises(PlanError, match=r"work_precision.h_vs.reference: sweep 'h_vs' has 0 points"):

@@ -416,11 +416,14 @@ class Plan:
 
     def case_differences(self, key: Key) -> list[str]:
         """'key = value there, value here' for each key where the case file of `key` differs from
-        the planned case ([] when it is the planned case or there is no case file)."""
+        the planned case ([] when it is the planned case or there is no case file). A key the file
+        does not record (added to the engine after it ran) counts at its default, as for `plugsim
+        run` (engine.run.finished_case)."""
         recorded = self.recorded_case(key)
         if recorded is None:
             return []
-        there = {f"{s}.{k}": v for s, values in recorded.items() for k, v in values.items()}
+        there = {name: k.default for name, k in KEYS.items()}
+        there.update({f"{s}.{k}": v for s, values in recorded.items() for k, v in values.items()})
         here = {k: v for k, v in self.cases[key].items()}
         # the physical keys first: they tell a reduced run from the paper's
         order = sorted(set(there) | set(here), key=lambda k: (k.startswith(("output.", "run.")), k))
