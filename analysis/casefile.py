@@ -1,4 +1,5 @@
-"""Reading case files (NetCDF4, design.md "Contracts"): geometry, configuration, time axis.
+"""Reading case files (NetCDF4, design.md "Contracts"): geometry, configuration, time axis; the
+variables a function needs, with the units the contract declares (analysis/contract.py).
 
 Everything here is SI: lengths in m, densities in kg/m3, times in s.
 """
@@ -13,6 +14,8 @@ from typing import Any, Mapping
 import numpy as np
 import xarray as xr
 import yaml
+
+from .contract import VARIABLES
 
 GEOMETRY_ATTRS = ("tube_length", "tube_diameter", "particle_diameter", "particle_density",
                   "inclination_deg")
@@ -96,10 +99,16 @@ def config(ds: xr.Dataset) -> dict[str, Any]:
 
 
 def require(ds: xr.Dataset, *names: str) -> None:
-    """Raise CaseFileError naming every variable of `names` that the case file lacks."""
+    """Raise CaseFileError naming every variable of `names` that the case file lacks, or that
+    carries other units than the contract declares (a variable without a units attribute passes)."""
     missing = [name for name in names if name not in ds.variables]
     if missing:
         raise CaseFileError(f"case file lacks variable(s) {', '.join(missing)}")
+    other = [f"{name} in {ds[name].attrs['units']!r}, not {VARIABLES[name].units!r}" for name in names
+             if name in VARIABLES and "units" in ds[name].attrs
+             and ds[name].attrs["units"] != VARIABLES[name].units]
+    if other:
+        raise CaseFileError(f"case file variable(s) in other units than the contract's: {'; '.join(other)}")
 
 
 def seconds(values: Any) -> np.ndarray:

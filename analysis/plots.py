@@ -2,7 +2,8 @@
 
 Every function draws into `ax` when given and returns its Figure; without `ax` it makes a new
 Figure (matplotlib.figure.Figure: no pyplot state, saved with the Agg canvas). Axes carry SI units
-or the papers' units (hPa/m, cP, kg/h).
+or the papers' units (hPa/m, cP, kg/h); a case-file variable's axis label and factor are the
+contract's (analysis/contract.py).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter
 
 from .casefile import geometry, seconds
+from .contract import label as variable_label
 from .curves import unresolved_bulk
 
 HPA = 100.0  # Pa per hPa
@@ -42,14 +44,6 @@ STATISTICS = {
     "slug_velocity": "{slug} travel speed (m/s)",
     "front_velocity": "{slug} front speed (m/s)",
     "n_particles": "grains per {slug}",
-}
-PROFILES = {  # field -> (axis label, factor from SI to the label's unit)
-    "porosity": ("porosity", 1.0),
-    "velocity": ("granular velocity (m/s)", 1.0),
-    "drag_force": ("force per grain (µN)", 1e6),
-    "particle_force": ("force per grain (µN)", 1e6),
-    "wall_stress": ("wall stress (Pa)", 1.0),
-    "granular_temperature": ("granular temperature per grain (nJ)", 1e9),
 }
 # Regime (analysis.curves.regime) -> marker and legend text; blocked points are not joined to the
 # curve (the tube did not deliver the feed the point is labelled with).
@@ -90,7 +84,7 @@ def porosity_image(ds: xr.Dataset, ax=None, t_range: tuple[float, float] | None 
     axis = geometry(ds).axis_name
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"{axis} (m)")
-    fig.colorbar(im, ax=ax, label="porosity")
+    fig.colorbar(im, ax=ax, label=variable_label("porosity")[0])
     return fig
 
 
@@ -128,7 +122,7 @@ def slug_profile(profile: xr.Dataset, fields="porosity", ax=None):
     fig, ax = _axes(ax)
     fields = [fields] if isinstance(fields, str) else list(fields)
     x = profile["dx_d"].values
-    label, factor = PROFILES.get(fields[0], (fields[0], 1.0))
+    label, factor = variable_label(fields[0])
     for name in fields:
         mean, sem = profile[name].values * factor, profile[f"{name}_sem"].values * factor
         line, = ax.plot(x, mean, label=name.replace("_", " "))
@@ -182,7 +176,7 @@ def velocity_height(profile: xr.Dataset, ax=None, label: str | None = None):
     """Mean axial grain velocity (m/s) against height z (mm) through a slug (H19)."""
     fig, ax = _axes(ax, (3.5, 3.5))
     ax.plot(profile["velocity"].values, profile["height"].values * 1e3, "o-", ms=3, label=label)
-    ax.set_xlabel("granular velocity (m/s)")
+    ax.set_xlabel(variable_label("velocity")[0])
     ax.set_ylabel("height z (mm)")
     if label:
         ax.legend(frameon=False)
@@ -201,7 +195,7 @@ def velocity_height_image(series: xr.Dataset, ax=None):
                    extent=(t[0] - dt / 2, t[-1] + dt / 2, h[0] - dh / 2, h[-1] + dh / 2))
     ax.set_xlabel("time (s)")
     ax.set_ylabel("height z (mm)")
-    fig.colorbar(im, ax=ax, label="granular velocity (m/s)")
+    fig.colorbar(im, ax=ax, label=variable_label("velocity")[0])
     return fig
 
 
@@ -251,7 +245,7 @@ def radial_profile(profile: xr.Dataset, field: str = "porosity", ax=None):
     sem = profile[f"{field}_sem"].values if f"{field}_sem" in profile else None
     ax.errorbar(r, profile[field].values, yerr=sem, fmt="o-", ms=3, capsize=2)
     ax.set_xlabel("r/d")
-    ax.set_ylabel("porosity" if field == "porosity" else "granular velocity (m/s)")
+    ax.set_ylabel(variable_label(field)[0])
     return fig
 
 

@@ -14,14 +14,12 @@ import pandas as pd
 import xarray as xr
 
 from .casefile import geometry, require, seconds
+from .contract import PROFILE_FIELDS, VARIABLES
 from .slugs import PAPER_LENGTH
 from .statistics import passages
 
 POSITION = 0.26  # m, papers: profiles at mid-tube
-FIELDS = ("porosity", "velocity", "drag_force", "particle_force", "wall_stress",
-          "granular_temperature")
-UNITS = {"porosity": "1", "velocity": "m s-1", "drag_force": "N", "particle_force": "N",
-         "wall_stress": "Pa", "granular_temperature": "J", "resting_layer_stress": "Pa"}
+FIELDS = PROFILE_FIELDS  # the slice fields the papers average (analysis/contract.py)
 # Half-widths of the selection bands around the mean (papers): horizontal §3.2 L = 0.05 +- 0.03 m,
 # u = 0.29 +- 0.1 m/s; vertical §4.2 L = 0.024 +- 0.01 m, u = 0.16 +- 0.02 m/s. The lengths are
 # the papers' slug length, with the smooth ends (slugs.PAPER_LENGTH).
@@ -108,9 +106,9 @@ def slug_profiles(ds: xr.Dataset, selection: pd.DataFrame, fields=FIELDS,
             sem = np.nanstd(stack, axis=0, ddof=1) / np.sqrt(n) if len(frames) > 1 else np.full(
                 grid.size, np.nan)
         sem = np.where(n > 1, sem, np.nan)
-        out[name] = ("dx_d", mean, {"units": UNITS.get(name, ""), "long_name": f"mean {name}"})
-        out[f"{name}_sem"] = ("dx_d", sem, {"units": UNITS.get(name, ""),
-                                            "long_name": f"standard error of the mean {name}"})
+        units = VARIABLES[name].units if name in VARIABLES else ds[name].attrs.get("units", "")
+        out[name] = ("dx_d", mean, {"units": units, "long_name": f"mean {name}"})
+        out[f"{name}_sem"] = ("dx_d", sem, {"units": units, "long_name": f"standard error of the mean {name}"})
         count = n if count is None else np.minimum(count, n)
     out["n_slugs"] = ("dx_d", count if count is not None else np.zeros(grid.size, int))
     if "porosity" in fields:

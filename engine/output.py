@@ -1,7 +1,8 @@
 """The case file: time series, slice fields and optional grain snapshots, written as NetCDF4.
 
-Series are gathered in memory (xarray cannot append along a dimension) and written once, to a
-temporary name that is renamed into place only when complete.
+Every variable is written as the contract declares it (analysis/contract.py: name, dimensions,
+type, units, long name). Series are gathered in memory (xarray cannot append along a dimension)
+and written once, to a temporary name that is renamed into place only when complete.
 """
 
 from __future__ import annotations
@@ -15,25 +16,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-SERIES = {  # name: (units, long_name)
-    "pressure_drop": ("Pa", "gas pressure at the inlet minus at the outlet"),
-    "n_particles": ("1", "grains inside the tube"),
-    "mass_in": ("kg", "cumulative grain mass fed into the tube"),
-    "mass_out": ("kg", "cumulative grain mass that left past the outlet"),
-    "kinetic_energy": ("J", "translational plus rotational kinetic energy of the grains in the tube"),
-    "max_overlap": ("1", "largest grain-grain, grain-wall or grain-feed overlap over the steps of the "
-                         "output interval, fraction of the grain diameter"),
-    "piston_force": ("N", "mean axial force of the feed piston on the grains over the output interval"),
-}
-FIELDS = {
-    "porosity": ("1", "slice porosity (grains weighted by their volume in the slice)"),
-    "velocity": ("m s-1", "mean axial grain velocity in the slice (volume-weighted)"),
-    "drag_force": ("N", "mean axial gas drag force per grain in the slice"),
-    "particle_force": ("N", "mean axial contact + wall + gravity force per grain in the slice"),
-    "wall_stress": ("Pa", "normal stress of the grains on the tube wall in the slice"),
-    "granular_temperature": ("J", "mean grain kinetic energy minus that of the slice's mean motion"),
-    "gas_pressure": ("Pa", "gas pressure relative to the background pressure, slice average"),
-}
+from analysis.contract import COORDS, FIELDS, FINAL, SERIES, SNAPSHOTS, TUBE_SNAPSHOTS
 
 
 class Recorder:
@@ -60,12 +43,9 @@ class Recorder:
         (t0, j0), j1 = self._last_impulse, sim.piston_impulse
         piston = (j1 - j0) / (sim.time - t0) if sim.time > t0 else 0.0
         self._last_impulse = (sim.time, j1)
-        values = {"pressure_drop": sim.pressure_drop, "n_particles": sim.n_particles,
-                  "mass_in": sim.mass_in, "mass_out": sim.mass_out,
-                  "kinetic_energy": sim.kinetic_energy, "max_overlap": sim.max_overlap / d,
-                  "piston_force": piston}
-        for name, value in values.items():
-            self.series[name].append(value)
+        per_frame = {"max_overlap": sim.max_overlap / d, "piston_force": piston}
+        for name in SERIES:  # every other series is the Simulation property of its name
+            self.series[name].append(per_frame[name] if name in per_frame else getattr(sim, name))
         fields = sim.slice_fields(self.width)
         fields["gas_pressure"] = sim.gas_pressure_slices(self.width)
         for name in FIELDS:
@@ -87,15 +67,10 @@ class Recorder:
         nslices = len(self.fields["porosity"][0]) if self.times else int(
             round(self.case["tube.length"] / self.width))
         x = (np.arange(nslices) + 0.5) * self.width
-        coords = {"time": ("time", np.array(self.times, dtype=float), {"units": "s", "long_name": "simulated time", "axis": "T"}),
-                  "x": ("x", x, {"units": "m", "long_name": "slice centre along the tube axis from the inlet", "axis": "X"})}
-        data = {}
-        for name, (units, long_name) in SERIES.items():
-            dtype = np.int64 if name == "n_particles" else float
-            data[name] = ("time", np.array(self.series[name], dtype=dtype), {"units": units, "long_name": long_name})
-        for name, (units, long_name) in FIELDS.items():
-            values = np.array(self.fields[name], dtype=np.float32).reshape(len(self.times), nslices)
-            data[name] = (("time", "x"), values, {"units": units, "long_name": long_name})
+        coords = {"time": COORDS["time"].entry(self.times), "x": COORDS["x"].entry(x)}
+        data = {name: var.entry(self.series[name]) for name, var in SERIES.items()}
+        for name, var in FIELDS.items():
+            data[name] = var.entry(np.array(self.fields[name], dtype=np.float32).reshape(len(self.times), nslices))
         ds = xr.Dataset(data, coords=coords, attrs=attrs)
         if self.case["output.snapshots"]:
             ds = ds.merge(self._snapshot_dataset())
@@ -122,8 +97,7 @@ class Recorder:
                              for t, n, end in zip(ds.snapshot_time.values, ds.snapshot_count.values, ends)]
         if rec._frames_per_tube_snapshot:
             ends = np.cumsum(ds.tube_snapshot_count.values)
-            arrays = [ds[f"tube_snapshot_{name}"].values
-                      for name in ("position", "velocity", "angular_velocity", "grain_id")]
+            arrays = [ds[name].values for name in TUBE_SNAPSHOTS if name != "tube_snapshot_count"]
             rec.tube_snapshots = [(float(t), *(a[end - n:end] for a in arrays)) for t, n, end in
                                   zip(ds.tube_snapshot_time.values, ds.tube_snapshot_count.values, ends)]
         return rec
@@ -131,57 +105,29 @@ class Recorder:
     @staticmethod
     def final_state(sim) -> xr.Dataset:
         """Every grain in the tube at the end of the run (float64), the start of a warm run."""
-        xyz = ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})
-        return xr.Dataset(
-            {"final_position": (("final_grain", "xyz"), sim.positions.copy(), {
-                "units": "m", "long_name": "grain centre at the end of the run"}),
-             "final_velocity": (("final_grain", "xyz"), sim.velocities.copy(), {
-                 "units": "m s-1", "long_name": "grain velocity at the end of the run"}),
-             "final_angular_velocity": (("final_grain", "xyz"), sim.angular_velocities.copy(), {
-                 "units": "rad s-1", "long_name": "grain angular velocity at the end of the run"})},
-            coords={"xyz": xyz})
+        values = (sim.positions, sim.velocities, sim.angular_velocities)
+        return xr.Dataset({name: var.entry(v.copy()) for (name, var), v in zip(FINAL.items(), values)},
+                          coords={"xyz": COORDS["xyz"].entry(["x", "y", "z"])})
 
     def _snapshot_dataset(self) -> xr.Dataset:
         """Snapshots as a CF contiguous ragged array (sample dimension `grain`)."""
-        times = np.array([s[0] for s in self.snapshots], dtype=float)
-        counts = np.array([len(s[1]) for s in self.snapshots], dtype=np.int64)
-        stack = (lambda k, shape: np.concatenate([s[k] for s in self.snapshots])
-                 if self.snapshots else np.zeros(shape))
-        return xr.Dataset(
-            {"snapshot_count": ("snapshot_time", counts, {
-                "long_name": "grains in the snapshot window at each snapshot time",
-                "sample_dimension": "grain", "units": "1"}),
-             "snapshot_position": (("grain", "xyz"), stack(1, (0, 3)).astype(np.float32), {
-                 "units": "m", "long_name": "grain centre (x along the tube, y and z across)"}),
-             "snapshot_velocity": (("grain", "xyz"), stack(2, (0, 3)).astype(np.float32), {
-                 "units": "m s-1", "long_name": "grain velocity"}),
-             "snapshot_grain_id": ("grain", stack(3, (0,)).astype(np.int64), {
-                 "units": "1", "long_name": "grain id (order of entry into the tube)"})},
-            coords={"snapshot_time": ("snapshot_time", times, {"units": "s", "long_name": "snapshot time"}),
-                    "xyz": ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})})
+        return _ragged(SNAPSHOTS, "snapshot_time", self.snapshots)
 
     def _tube_snapshot_dataset(self) -> xr.Dataset:
         """Whole-tube snapshots as a CF contiguous ragged array (sample dimension `tube_grain`)."""
-        snaps = self.tube_snapshots
-        stack = (lambda k, shape: np.concatenate([s[k] for s in snaps]) if snaps else np.zeros(shape))
-        vector = ("tube_grain", "xyz")
-        counts = np.array([len(s[1]) for s in snaps], dtype=np.int64)
-        times = np.array([s[0] for s in snaps], dtype=float)
-        return xr.Dataset(
-            {"tube_snapshot_count": ("tube_snapshot_time", counts, {
-                "long_name": "grains in the tube at each whole-tube snapshot time",
-                "sample_dimension": "tube_grain", "units": "1"}),
-             "tube_snapshot_position": (vector, stack(1, (0, 3)).astype(np.float32), {
-                 "units": "m", "long_name": "grain centre (x along the tube, y and z across)"}),
-             "tube_snapshot_velocity": (vector, stack(2, (0, 3)).astype(np.float32), {
-                 "units": "m s-1", "long_name": "grain velocity"}),
-             "tube_snapshot_angular_velocity": (vector, stack(3, (0, 3)).astype(np.float32), {
-                 "units": "rad s-1", "long_name": "grain angular velocity"}),
-             "tube_snapshot_grain_id": ("tube_grain", stack(4, (0,)).astype(np.int64), {
-                 "units": "1", "long_name": "grain id (order of entry into the tube)"})},
-            coords={"tube_snapshot_time": ("tube_snapshot_time", times, {
-                        "units": "s", "long_name": "whole-tube snapshot time"}),
-                    "xyz": ("xyz", np.array(["x", "y", "z"]), {"long_name": "component"})})
+        return _ragged(TUBE_SNAPSHOTS, "tube_snapshot_time", self.tube_snapshots)
+
+
+def _ragged(group: dict, time: str, snaps: list) -> xr.Dataset:
+    """The contract's `group` (the count, then one variable per array of a snapshot) over the
+    coordinate `time`, from snapshots [(time, array, ...), ...] (empty arrays without any)."""
+    count, *arrays = group.values()
+    data = {count.name: count.entry([len(s[1]) for s in snaps])}
+    for k, var in enumerate(arrays, start=1):
+        empty = np.zeros((0, 3)[:len(var.dims)])
+        data[var.name] = var.entry(np.concatenate([s[k] for s in snaps]) if snaps else empty)
+    return xr.Dataset(data, coords={time: COORDS[time].entry([s[0] for s in snaps]),
+                                    "xyz": COORDS["xyz"].entry(["x", "y", "z"])})
 
 
 def software_versions() -> dict:

@@ -20,6 +20,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from analysis.contract import RESTART
 from analysis.timeseries import MeanError, mean_error
 
 from .case import Case, defaults, flatten
@@ -265,10 +266,10 @@ def _load_checkpoint(path: Path, digest: str, case: Case):
 def restart_state(sim: Simulation, digest: str) -> xr.Dataset:
     """The engine's full state (the pickled Simulation) as a byte variable of the case file, from
     which a longer run continues bit for bit."""
-    data = np.frombuffer(pickle.dumps(sim, protocol=5), dtype=np.uint8)
-    return xr.Dataset({"restart_state": ("restart_byte", data, {
-        "long_name": "full engine state at the end of the run (pickled), to continue it to a longer "
-                     "run.duration", "units": "1", "digest": digest})})
+    var = RESTART["restart_state"]
+    data = np.frombuffer(pickle.dumps(sim, protocol=5), dtype=var.dtype)
+    return xr.Dataset({var.name: (var.dims, data, {"long_name": var.long_name, "units": var.units,
+                                                   "digest": digest})})
 
 
 def _load_finished(out: Path, case: Case, digest: str, frames: int):

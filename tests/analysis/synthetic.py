@@ -1,4 +1,4 @@
-"""Synthetic case files with a known answer, following the case-file contract (design.md).
+"""Synthetic case files with a known answer, built from the case-file contract (analysis/contract.py).
 
 A slug is a symmetric trapezoid in the solid fraction s = 1 - porosity: s rises linearly (slope
 (S_SLUG - S_GAP) / RAMP) from the gap value to the slug value; the threshold 0.6 is crossed exactly
@@ -17,6 +17,8 @@ from typing import Callable
 import numpy as np
 import xarray as xr
 import yaml
+
+from analysis import contract
 
 L_TUBE = 0.525  # m
 D_TUBE = 0.007  # m
@@ -138,24 +140,26 @@ def build(slugs: list[Slug], duration: float = 4.0, inclination_deg: float = 0.0
     grains = ((1 - phi) * DX).sum(axis=1) * A_TUBE / V_GRAIN
     cfg = case_config(inclination_deg, **config)
     feed = cfg["feed"]["mass_flow_kg_h"] / 3600  # kg/s, delivered once the tube has filled (2 s)
+    values = {
+        "pressure_drop": pressure_signal(times, pressure_drop * L_TUBE, rho=0.8, seed=seed),
+        "n_particles": np.round(grains),
+        "mass_in": times * feed,
+        "mass_out": np.maximum(times - 2.0, 0) * feed,
+        "max_overlap": np.full(times.size, 0.01),
+        "porosity": phi,
+        "velocity": vel,
+        "drag_force": DRAG_PEAK * shape,
+        "particle_force": -DRAG_PEAK * shape,
+        "wall_stress": WALL_PEAK * shape,
+        "granular_temperature": TEMPERATURE_PEAK * shape,
+    }
+    sizes = {"time": times.size, "x": x.size}
+    # every series and slice field of the contract, zero where the scenario does not model it
+    data = {name: var.entry(values.get(name, np.zeros([sizes[d] for d in var.dims])), cast=False)
+            for name, var in {**contract.SERIES, **contract.FIELDS}.items()}
     ds = xr.Dataset(
-        {
-            "pressure_drop": ("time", pressure_signal(times, pressure_drop * L_TUBE, rho=0.8, seed=seed),
-                              {"units": "Pa", "long_name": "inlet minus outlet pressure"}),
-            "n_particles": ("time", np.round(grains), {"units": "1", "long_name": "grains in the tube"}),
-            "mass_in": ("time", times * feed, {"units": "kg"}),
-            "mass_out": ("time", np.maximum(times - 2.0, 0) * feed, {"units": "kg"}),
-            "kinetic_energy": ("time", np.zeros(times.size), {"units": "J"}),
-            "max_overlap": ("time", np.full(times.size, 0.01), {"units": "1"}),
-            "porosity": (("time", "x"), phi, {"units": "1", "long_name": "slice porosity"}),
-            "velocity": (("time", "x"), vel, {"units": "m s-1", "long_name": "axial grain velocity"}),
-            "drag_force": (("time", "x"), DRAG_PEAK * shape, {"units": "N"}),
-            "particle_force": (("time", "x"), -DRAG_PEAK * shape, {"units": "N"}),
-            "wall_stress": (("time", "x"), WALL_PEAK * shape, {"units": "Pa"}),
-            "granular_temperature": (("time", "x"), TEMPERATURE_PEAK * shape, {"units": "J"}),
-        },
-        coords={"time": ("time", times, {"units": "s", "axis": "T"}),
-                "x": ("x", x, {"units": "m", "axis": "X", "long_name": "slice centre"})},
+        data,
+        coords={"time": contract.COORDS["time"].entry(times), "x": contract.COORDS["x"].entry(x)},
         attrs={"Conventions": "CF-1.13", "config_yaml": yaml.safe_dump(cfg, sort_keys=False),
                "tube_length": L_TUBE, "tube_diameter": D_TUBE, "particle_diameter": D_GRAIN,
                "particle_density": RHO, "inclination_deg": float(inclination_deg), "seed": seed},
@@ -166,16 +170,17 @@ def build(slugs: list[Slug], duration: float = 4.0, inclination_deg: float = 0.0
 
 
 def add_snapshots(ds: xr.Dataset, snapshots) -> xr.Dataset:
-    """Attach snapshots [(time, positions, velocities), ...] as the CF contiguous ragged array."""
+    """Attach snapshots [(time, positions, velocities), ...] as the CF contiguous ragged array
+    (float64 positions and velocities; grain ids numbered through the snapshots)."""
     times = np.array([s[0] for s in snapshots], dtype=np.float64)
     pos = np.concatenate([np.asarray(s[1], dtype=np.float64).reshape(-1, 3) for s in snapshots])
     vel = np.concatenate([np.asarray(s[2], dtype=np.float64).reshape(-1, 3) for s in snapshots])
     count = np.array([len(np.asarray(s[1]).reshape(-1, 3)) for s in snapshots], dtype=np.int64)
-    return ds.assign(
-        snapshot_count=("snapshot_time", count, {"sample_dimension": "grain", "long_name": "grains"}),
-        snapshot_position=(("grain", "xyz"), pos, {"units": "m"}),
-        snapshot_velocity=(("grain", "xyz"), vel, {"units": "m s-1"}),
-    ).assign_coords(snapshot_time=("snapshot_time", times, {"units": "s"}))
+    values = {"snapshot_count": count, "snapshot_position": pos, "snapshot_velocity": vel,
+              "snapshot_grain_id": np.arange(len(pos), dtype=np.int64)}
+    return ds.assign({name: var.entry(values[name], cast=False) for name, var in contract.SNAPSHOTS.items()}
+                     ).assign_coords(snapshot_time=contract.COORDS["snapshot_time"].entry(times),
+                                     xyz=contract.COORDS["xyz"].entry(["x", "y", "z"]))
 
 
 def write(ds: xr.Dataset, path) -> None:

@@ -14,9 +14,9 @@ import pytest
 import xarray as xr
 
 from analysis import open_case, steady_pressure_drop
-from engine import Case, Simulation
+from analysis.contract import FIELDS, SERIES
 from analysis.timeseries import mean_error
-from engine.output import FIELDS, SERIES
+from engine import Case, Simulation
 from engine.run import RunError, _check_health, checkpoint_path, run_case, steady_window
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,8 +44,8 @@ def test_case_file_has_the_contract_variables_dims_and_units(short_run):
     assert ds.time.attrs["units"] == "s" and ds.x.attrs["units"] == "m"
     np.testing.assert_allclose(ds.time, np.arange(61) * 0.01, atol=1e-12)
     np.testing.assert_allclose(ds.x, (np.arange(6) + 0.5) * 0.0035, rtol=1e-12)
-    for name, (units, _) in {**SERIES, **FIELDS}.items():
-        assert ds[name].attrs["units"] == units and ds[name].attrs["long_name"]
+    for name, var in {**SERIES, **FIELDS}.items():
+        assert ds[name].attrs["units"] == var.units and ds[name].attrs["long_name"]
     for name in SERIES:
         assert ds[name].dims == ("time",)
     for name in FIELDS:
