@@ -145,10 +145,11 @@ def markdown(df: pd.DataFrame) -> str:
     lines += ["", "| statement | reading | paper | ours | ratio | effect against the baseline | within |",
               "|---|---|---|---|---|---|---|"]
     for _, r in df.iterrows():
+        unit = "" if isinstance(r["ours"], str) or r["unit"] == "1" else r["unit"]
         ours = r["ours"] if isinstance(r["ours"], str) else (
-            f"{r['ours']:.3g} +- {r['ours_error']:.2g}" if math.isfinite(r["ours_error"]) else f"{r['ours']:.3g}")
+            f"{r['ours']:.4g} +- {r['ours_error']:.2g}" if math.isfinite(r["ours_error"]) else f"{r['ours']:.4g}")
         ratio = f"{r['ratio']:.2f}" if isinstance(r["ratio"], float) and math.isfinite(r["ratio"]) else ""
-        lines.append(f"| {r['id']} | {r['reading']} | {r['paper_value']} | {ours} {r['unit'] if not isinstance(r['ours'], str) else ''} "
+        lines.append(f"| {r['id']} | {r['reading']} | {r['paper_value']} | {ours} {unit} "
                      f"| {ratio} | {effect_text(r)} | {r['within']} |")
     return "\n".join(lines) + "\n"
 

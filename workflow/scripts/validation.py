@@ -272,7 +272,7 @@ def paper_interval(st):
 
 
 def paper_text(st) -> str:
-    unit = st.get("unit", "")
+    unit = "" if st.get("unit", "") == "1" else st.get("unit", "")  # a count has no unit to print
     if "expected" in st:
         return str(st["expected"])
     if "range" in st:
