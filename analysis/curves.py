@@ -164,6 +164,28 @@ def _slope(t, values) -> float:
     return float(np.polyfit(t, values, 1)[0]) if len(t) > 1 else float("nan")
 
 
+def force_balance(ds: xr.Dataset, window: float = 1.0) -> dict:
+    """Axial forces on the grains in the tube (N), means over the last `window` seconds of the case:
+    piston_force (the feed piston's push), gas_force (the drag of every slice: its drag per grain
+    times its grains, (1 - porosity) A dx / V_p), weight_force (the grains' weight along the tube
+    axis) and wall_friction_force (wall.friction times their weight across the axis: the sliding
+    friction of a column resting on the wall)."""
+    require(ds, "piston_force", "drag_force", "porosity", "n_particles")
+    geo = geometry(ds)
+    t = seconds(ds["time"].values)
+    last = t >= t[-1] - window
+    width = np.diff(slice_faces(ds["x"].values))
+    grains = (1.0 - ds["porosity"].values[last]) * geo.cross_section * width / geo.particle_volume
+    mass = geo.particle_density * geo.particle_volume
+    weight = float(np.mean(ds["n_particles"].values[last])) * mass * geo.gravity
+    incline = math.radians(geo.inclination_deg)
+    mu_wall = float(config(ds).get("wall.friction", float("nan"))) if "config_yaml" in ds.attrs else float("nan")
+    return {"piston_force": float(np.mean(ds["piston_force"].values[last])),
+            "gas_force": float(np.mean(np.nansum(ds["drag_force"].values[last] * grains, axis=1))),
+            "weight_force": weight * math.sin(incline),
+            "wall_friction_force": mu_wall * weight * math.cos(incline)}
+
+
 def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | None = None,
                  position: float | None = None,
                  slugs: pd.DataFrame | None = None) -> dict:
@@ -177,7 +199,9 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     slug_length_total (with the ends, the papers' reading; m), each with its standard error (_sem);
     n_particles (time mean in the window) and n_particles_sem (mean_error), mass_flow_out and
     mass_flow_in (kg/s, slopes of mass_out and mass_in over the window), mass_flow_fed (kg/s, the
-    configured feed) and stop_reason.
+    configured feed) and stop_reason; a blocked case adds the force balance of its last second
+    (force_balance, N) as block_piston_force, block_gas_force, block_weight_force and
+    block_wall_friction_force.
     """
     geo = geometry(ds)
     row = dict(config(ds)) if "config_yaml" in ds.attrs else {}
@@ -216,6 +240,8 @@ def case_summary(ds: xr.Dataset, threshold: float = THRESHOLD, t_start: float | 
     row["travel_speed_sem"] = travel_speed_sem(slugs, geo.tube_length, t0) if len(slugs) else nan
     row["regime"] = regime(fractions["dense_fraction"], row["slug_rate"], row["travel_speed"],
                            row["delivery"], geo.vertical, row["stop_reason"])
+    if row["regime"] == "blocked" and "piston_force" in ds:
+        row.update({f"block_{name}": value for name, value in force_balance(ds).items()})
     return row
 
 

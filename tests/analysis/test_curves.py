@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from analysis import (case_summary, mean_error, mser_start, regime, steady_pressure_drop,
                       sweep_table)
@@ -223,3 +224,28 @@ def test_travel_speed_error_counts_slugs_not_frames():
     expected = math.sqrt(math.pi / 2) * np.std([0.2, 0.3, 0.4, 0.5], ddof=1) / 2
     assert travel_speed_sem(slugs, 1.0) == pytest.approx(expected, rel=1e-12)
     assert math.isnan(travel_speed_sem(slugs[slugs["slug_id"] == 1], 1.0))  # one slug: no spread
+
+
+@pytest.mark.parametrize("inclination", [0.0, 90.0])
+def test_force_balance_of_a_packed_column(inclination):
+    # a tube half full of grains (porosity 0.5 everywhere) with a drag of 1 uN per grain and a
+    # piston pushing 2 N over the last second (1 N before): the gas force is the drag times the
+    # grains, (1 - 0.5) A L / V_p; the weight acts along the axis when vertical, and wall.friction
+    # times it across the axis when horizontal
+    ds = S.build([], duration=3.0, inclination_deg=inclination)
+    ds["porosity"][:] = 0.5
+    ds["drag_force"][:] = 1e-6
+    t = ds["time"].values
+    ds["piston_force"][:] = np.where(t >= t[-1] - 1.0, 2.0, 1.0)
+    ds["n_particles"][:] = 1000
+    cfg = yaml.safe_load(ds.attrs["config_yaml"])
+    cfg["wall"] = {"friction": 0.3}
+    ds.attrs["config_yaml"] = yaml.safe_dump(cfg)
+    balance = curves.force_balance(ds)
+    grains = 0.5 * S.A_TUBE * S.L_TUBE / S.V_GRAIN
+    weight = 1000 * S.RHO * S.V_GRAIN * 9.81
+    assert balance["piston_force"] == pytest.approx(2.0)
+    assert balance["gas_force"] == pytest.approx(1e-6 * grains, rel=1e-6)  # float32 fields
+    vertical = inclination == 90.0
+    assert balance["weight_force"] == pytest.approx(weight if vertical else 0.0, abs=1e-12)
+    assert balance["wall_friction_force"] == pytest.approx(0.0 if vertical else 0.3 * weight, abs=1e-12)

@@ -105,3 +105,17 @@ def test_grains_3d_titles_name_no_stretch_length():
         for fig, spec in (yaml.safe_load(path.read_text()).get("figures") or {}).items():
             if spec["kind"] == "grains_3d":
                 assert not re.search(r"\d\s*(cm|mm|m)\b", spec.get("title", "")), f"{path.name}: {fig}"
+
+
+def test_curve_caption_of_a_blocked_point_gives_its_force_balance():
+    import pandas as pd
+    row = {"gas.superficial_velocity": 0.15, "pressure_drop": 5090.0, "pressure_drop_sem": 40.0,
+           "regime": "blocked", "stop_reason": "blocked", "delivery": 0.44, "t_start": 9.66,
+           "t_end": 11.49, "block_piston_force": 2.1, "block_gas_force": 0.12,
+           "block_weight_force": 0.0, "block_wall_friction_force": 0.031}
+    conveying = {**row, "regime": "slug", "stop_reason": "steady", "delivery": 1.0,
+                 "block_piston_force": float("nan")}
+    blocked, slug = figure._curve_facts(pd.DataFrame([row, conveying]), "gas.superficial_velocity")
+    assert ("axial forces over its last second: piston 2.1 N, gas drag 0.12 N, weight along the "
+            "tube 0 N, wall friction of the weight 0.031 N") in blocked
+    assert "axial forces" not in slug

@@ -17,12 +17,14 @@ RESULTS = ["pressure_drop", "pressure_drop_sem", "pressure_drop_correlation_time
            "dense_fraction", "slug_fraction", "slug_rate", "slug_velocity", "travel_speed",
            "travel_speed_sem", "max_velocity", "max_velocity_sem", "slug_length", "slug_length_total", "n_particles", "n_particles_sem",
            "mass_flow_out", "mass_flow_fed", "delivery", "n_slugs", "dashpot_resolved",
-           "initial_state", "vertical"]
+           "initial_state", "vertical", "block_piston_force", "block_gas_force", "block_weight_force",
+           "block_wall_friction_force"]
 UNITS = {"pressure_drop": "Pa m-1", "pressure_drop_sem": "Pa m-1",
          "pressure_drop_correlation_time": "s", "t_start": "s", "t_end": "s",
          "slug_rate": "s-1", "slug_velocity": "m s-1", "travel_speed": "m s-1",
          "travel_speed_sem": "m s-1", "max_velocity": "m s-1", "max_velocity_sem": "m s-1", "slug_length": "m", "slug_length_total": "m",
-         "mass_flow_out": "kg s-1", "mass_flow_fed": "kg s-1", "delivery": "1"}
+         "mass_flow_out": "kg s-1", "mass_flow_fed": "kg s-1", "delivery": "1",
+         **{f"block_{name}_force": "N" for name in ("piston", "gas", "weight", "wall_friction")}}
 
 
 def table(summaries, parameters) -> pd.DataFrame:

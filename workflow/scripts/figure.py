@@ -172,13 +172,25 @@ def _curve_facts(table, x, group=None) -> list[str]:
                      and np.isfinite(float(row["delivery"])) else "")
         stop = row.get("stop_reason", "")
         detail = ", ".join(str(v) for v in (row["regime"], delivered,
-                                            stop if stop != row["regime"] else "", window, start)
+                                            stop if stop != row["regime"] else "", window, start,
+                                            _block_forces(row))
                            if isinstance(v, str) and v)
         sem = float(row["pressure_drop_sem"])
         error = (f" +- {sem / HPA:.2g} hPa/m" if np.isfinite(sem)
                  else f" hPa/m, no standard error ({NOT_CONVERGED})")
         facts.append(f"{', '.join(where)}: {row['pressure_drop'] / HPA:.3g}{error} ({detail})")
     return facts
+
+
+def _block_forces(row) -> str:
+    """The axial force balance of a blocked case's last second (analysis.curves.force_balance), or ''."""
+    names = ("piston", "gas", "weight", "wall_friction")
+    values = [float(row.get(f"block_{name}_force", float("nan"))) for name in names]
+    if row.get("regime") != "blocked" or not np.isfinite(values[0]):
+        return ""
+    piston, gas, weight, friction = values
+    return (f"axial forces over its last second: piston {piston:.2g} N, gas drag {gas:.2g} N, "
+            f"weight along the tube {weight:.2g} N, wall friction of the weight {friction:.2g} N")
 
 
 def curve(inp, spec, settings):
