@@ -22,7 +22,7 @@ import numpy as np
 
 from .case import Case
 from .feed import layer_template
-from .kernels import contacts, laws, params
+from .kernels import contacts, laws
 from .parser import OneLineParser
 from .simulation import Simulation
 
@@ -112,7 +112,7 @@ def _run_pass(which, calls, grains, nbr_start, nbr, p, pairs, blocks):
     """`calls` times one pass of contact_forces (PASSES[which]) over the blocks (rows lo, hi, touching
     pairs, inlet rows written)."""
     optional = laws.optional_terms(p)
-    dia = 2.0 * p[params.RADIUS]
+    dia = 2.0 * p.radius
     for _ in range(calls):
         for b in range(blocks.shape[0]):
             lo, hi, m = blocks[b, 0], blocks[b, 1], blocks[b, 2]

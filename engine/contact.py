@@ -1,4 +1,6 @@
-"""Contact-law parameters derived from a case: damping from restitution, contact time, stable time step.
+"""Contact-law parameters derived from a case, one function each: grain mass and inertia, damping from
+restitution, contact time, stable time step, the capped tangential damping; `ContactModel` holds
+them for the Python side.
 
 Normal force: F_n = max(0, k_n delta + gamma_n v_n) (linear spring + dashpot, never attractive).
 Tangential force: F_t = -min(mu F_n, gamma_t |v_t|) t_hat (viscous-regularised Coulomb, no history),
@@ -53,9 +55,95 @@ DASHPOT_WARNING = ("packed beds (bulk transport) carry a time-step error here, s
                    "(docs/performance.md, \"The tangential dashpot and the time step\")")
 
 
+# ---- the derived constants of the contact law, one function each (engine/parameters.py declares
+# which of them the kernels read) ---------------------------------------------------------------
+def grain_radius(case: Case) -> float:
+    """r = d/2, m."""
+    return case["particles.diameter"] / 2
+
+
+def grain_mass(case: Case) -> float:
+    """m = rho_s pi d^3/6, kg."""
+    return case["particles.density"] * math.pi * case["particles.diameter"] ** 3 / 6
+
+
+def grain_inertia(case: Case) -> float:
+    """I = 2/5 m r^2, kg m2."""
+    return 0.4 * grain_mass(case) * grain_radius(case) ** 2
+
+
+def damping_pair(case: Case) -> float:
+    """gamma_n between two grains (reduced mass m/2) that gives particles.restitution, N s/m."""
+    zeta = damping_ratio(case["particles.restitution"])
+    return 2 * zeta * math.sqrt(grain_mass(case) / 2 * case["particles.stiffness"])
+
+
+def damping_wall(case: Case) -> float:
+    """gamma_n between a grain and the wall (infinite mass) that gives wall.restitution, N s/m."""
+    zeta = damping_ratio(case["wall.restitution"])
+    return 2 * zeta * math.sqrt(grain_mass(case) * case["particles.stiffness"])
+
+
+def _pair_frequency(case: Case) -> float:
+    """omega_0 = sqrt(k_n / (m/2)) of a grain-grain contact, 1/s."""
+    return math.sqrt(case["particles.stiffness"] / (grain_mass(case) / 2))
+
+
+def contact_time(case: Case) -> float:
+    """Duration of a head-on grain-grain contact, s."""
+    zeta = damping_ratio(case["particles.restitution"])
+    return math.pi / (_pair_frequency(case) * math.sqrt(1.0 - zeta**2))
+
+
+def stable_time_step(case: Case) -> float:
+    """The largest step allowed: numerics.time_step_safety of the single pair's limit, s."""
+    zeta = damping_ratio(case["particles.restitution"])
+    # Velocity Verlet on a damped oscillator is stable for omega dt < 2 (sqrt(1+zeta^2) - zeta).
+    stable_normal = 2.0 / _pair_frequency(case) * (math.sqrt(1 + zeta**2) - zeta)
+    # Contacts in a packed column couple into faster modes than one pair: keep a margin.
+    return case["numerics.time_step_safety"] * stable_normal
+
+
+def time_step(case: Case) -> float:
+    """numerics.time_step_fraction of the contact time, rounded down so that output.interval is a
+    whole number of steps (frames fall on t = k dt), s; CaseError above stable_time_step."""
+    t_c = contact_time(case)
+    dt = case["numerics.time_step_fraction"] * t_c
+    dt = case["output.interval"] / math.ceil(case["output.interval"] / dt)
+    stable = stable_time_step(case)
+    if dt > stable:
+        raise CaseError(
+            f"numerics.time_step_fraction = {case['numerics.time_step_fraction']:g} gives a time step "
+            f"{dt:.3g} s above the stable limit {stable:.3g} s (= {stable / t_c:.3f} of the "
+            f"contact time {t_c:.3g} s, numerics.time_step_safety = "
+            f"{case['numerics.time_step_safety']:g} of the single-pair limit); use "
+            f"numerics.time_step_fraction <= {stable / t_c:.3f}")
+    return dt
+
+
+# The dashpot acts on the slip of the contact point, whose inertia is m/7 for two spheres (sliding +
+# rolling of both) and 2m/7 against the wall. An explicit step with gamma_t dt / m_slip above 1
+# reverses the slip, above 2 amplifies it (a sticking grain then chatters at the Coulomb bound);
+# capped at m_slip/dt the slip of a sticking contact decays at any dt (tests/engine/test_grains.py).
+# Below the cap (dt < (m/7)/gamma_t = 9.6 us for the default grains) the law is the papers'
+# unchanged. The implicit spin kick would let a lone pair go to gamma_t dt/m = 0.184 without
+# reversing, but a packed bed then chatters from 0.175 t_c
+# (docs/decisions/0007-time-step-0.2-tc-rejected.md), so both kicks keep it.
+def tangential_damping_pair(case: Case) -> float:
+    """gamma_t between grains: min(particles.tangential_damping, (m/7)/dt), N s/m."""
+    return min(case["particles.tangential_damping"], grain_mass(case) / 7.0 / time_step(case))
+
+
+def tangential_damping_wall(case: Case) -> float:
+    """gamma_t at the wall: min(particles.tangential_damping, (2m/7)/dt), N s/m."""
+    return min(case["particles.tangential_damping"], 2.0 * grain_mass(case) / 7.0 / time_step(case))
+
+
 @dataclass(frozen=True)
 class ContactModel:
-    """Derived grain and contact constants, SI units."""
+    """The contact law's derived constants of a case, SI units, for the Python side (reports,
+    checks, the driver's bookkeeping); the kernels read theirs from engine/parameters.py, built by
+    the same functions."""
 
     radius: float
     mass: float
@@ -86,46 +174,12 @@ class ContactModel:
 
     @classmethod
     def from_case(cls, case: Case) -> "ContactModel":
-        d, rho, k = case["particles.diameter"], case["particles.density"], case["particles.stiffness"]
-        radius = d / 2
-        mass = rho * math.pi * d**3 / 6
-        inertia = 0.4 * mass * radius**2
-        m_pair = mass / 2  # reduced mass of two equal grains; the wall has infinite mass
-        zeta_pair = damping_ratio(case["particles.restitution"])
-        zeta_wall = damping_ratio(case["wall.restitution"])
-        omega_pair = math.sqrt(k / m_pair)
-        contact_time = math.pi / (omega_pair * math.sqrt(1.0 - zeta_pair**2))
-        gamma_t = case["particles.tangential_damping"]
-        # Velocity Verlet on a damped oscillator is stable for omega dt < 2 (sqrt(1+zeta^2) - zeta).
-        stable_normal = 2.0 / omega_pair * (math.sqrt(1 + zeta_pair**2) - zeta_pair)
-        # Contacts in a packed column couple into faster modes than one pair: keep a margin.
-        stable = case["numerics.time_step_safety"] * stable_normal
-        dt = case["numerics.time_step_fraction"] * contact_time
-        # Round down so that an output interval is a whole number of steps (frames fall on t = k dt).
-        dt = case["output.interval"] / math.ceil(case["output.interval"] / dt)
-        # The dashpot acts on the slip of the contact point, whose inertia is m/7 for two spheres
-        # (sliding + rolling of both) and 2m/7 against the wall. An explicit step with
-        # gamma_t dt / m_slip above 1 reverses the slip, above 2 amplifies it (a sticking grain then
-        # chatters at the Coulomb bound); capped at m_slip/dt the slip of a sticking contact decays
-        # at any dt (tests/engine/test_grains.py). Below the cap (dt < (m/7)/gamma_t = 9.6 us for
-        # the default grains) the law is the papers' unchanged. The implicit spin kick would let a
-        # lone pair go to gamma_t dt/m = 0.184 without reversing, but a packed bed then chatters
-        # from 0.175 t_c (docs/decisions/0007-time-step-0.2-tc-rejected.md), so both kicks keep it.
-        gamma_pair = min(gamma_t, mass / 7.0 / dt)
-        gamma_wall = min(gamma_t, 2.0 * mass / 7.0 / dt)
-        if dt > stable:
-            raise CaseError(
-                f"numerics.time_step_fraction = {case['numerics.time_step_fraction']:g} gives a time step "
-                f"{dt:.3g} s above the stable limit {stable:.3g} s (= {stable / contact_time:.3f} of the "
-                f"contact time {contact_time:.3g} s, numerics.time_step_safety = "
-                f"{case['numerics.time_step_safety']:g} of the single-pair limit); use "
-                f"numerics.time_step_fraction <= {stable / contact_time:.3f}")
         return cls(
-            radius=radius, mass=mass, inertia=inertia, stiffness=k,
-            damping_pair=2 * zeta_pair * math.sqrt(m_pair * k),
-            damping_wall=2 * zeta_wall * math.sqrt(mass * k),
-            tangential_damping=gamma_t, tangential_damping_pair=gamma_pair,
-            tangential_damping_wall=gamma_wall,
+            radius=grain_radius(case), mass=grain_mass(case), inertia=grain_inertia(case),
+            stiffness=case["particles.stiffness"], damping_pair=damping_pair(case),
+            damping_wall=damping_wall(case), tangential_damping=case["particles.tangential_damping"],
+            tangential_damping_pair=tangential_damping_pair(case),
+            tangential_damping_wall=tangential_damping_wall(case),
             friction_pair=case["particles.friction"], friction_wall=case["wall.friction"],
-            contact_time=contact_time, stable_time_step=stable, time_step=dt,
+            contact_time=contact_time(case), stable_time_step=stable_time_step(case), time_step=time_step(case),
             implicit_spin=bool(case["numerics.implicit_spin"]))

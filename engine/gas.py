@@ -1,18 +1,21 @@
 """Gas pressure field: grid geometry and a thin Python wrapper around engine.kernels.gas (SI units).
 
-`GasField` builds the cell-centred grid, the node volumes of the cut cells and every work array,
-then offers deposit / step / drag_forces / pressure_drop for tests and standalone use.  A numba
-time loop calls the kernels directly with the arrays held here (see docs/gas.md).
+`GasField` builds the cell-centred grid, the node volumes of the cut cells and every work array
+for a case, then offers deposit / step / drag_forces / pressure_drop for tests and standalone use.
+A numba time loop calls the kernels directly with the arrays held here (see docs/gas.md). The
+grid's derived constants that the gas kernels read (grid_nodes, grain_volume, solid_min) are
+declared in engine/parameters.py.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 
 import numpy as np
 
-from .case import KEYS
+from .case import Case
 from .kernels import gas as K
 
 QUADRATURE_POINTS = 200_001  # angular midpoint points of the cross-section quadrature
@@ -20,9 +23,8 @@ QUADRATURE_POINTS = 200_001  # angular midpoint points of the cross-section quad
 # state to ~5e-7 (1e4 m2 would lose it entirely), and a grain whose node reads 1 - phi = 1e-3 sees
 # a gradient of only eta v_s / kappa = 6e-3 Pa/m at v_s = 1 m/s (docs/gas.md)
 PHI_MAX = 0.999
-FACE_RULES = ("harmonic", "arithmetic")
-DEPOSIT_VOLUMES = ("tube", "cell")
-SCHEMES = ("unsplit", "split")
+PHI_MIN = 0.2  # porosity floor of over-compressed nodes
+DUMMY_NODES = (3, 1, 1)  # the grid of a case without gas: the kernels keep one signature
 
 
 def _tent_antiderivative(z, m, n, lo, h):
@@ -44,6 +46,11 @@ def cross_section_areas(radius, ny, nz, points=QUADRATURE_POINTS):
     Exact in z; in y by the midpoint rule in the angle (y = R sin t), whose integrand is smooth but
     for kinks at the nodes.  Rescaled so that sum A_km = pi R^2 (a round-off-level correction).
     """
+    return _cross_section_areas(float(radius), int(ny), int(nz), int(points)).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _cross_section_areas(radius, ny, nz, points):
     hy = 2.0 * radius / ny
     hz = 2.0 * radius / nz
     t = (np.arange(points) + 0.5) / points * math.pi - 0.5 * math.pi
@@ -104,68 +111,48 @@ def build_geometry(length, radius, nodes):
     return cross_section_areas(radius, ny, nz), *face_areas(length, radius, nx, ny, nz)
 
 
+def grid_nodes(case: Case) -> tuple[int, int, int]:
+    """Nodes (nx, ny, nz) of the case's gas grid; DUMMY_NODES when the gas is off."""
+    if not case["gas.enabled"]:
+        return DUMMY_NODES
+    return case["gas.nodes_x"], case["gas.nodes_y"], case["gas.nodes_z"]
+
+
+def grain_volume(case: Case) -> float:
+    """V_p = pi d^3/6, m3."""
+    return math.pi * case["particles.diameter"] ** 3 / 6.0
+
+
+def solid_min(case: Case) -> float:
+    """Floor of 1 - phi_i in the drag: V_p / (8 max V_j), what one deposited grain reads (V_j the
+    largest node's tube volume)."""
+    nx, ny, nz = grid_nodes(case)
+    hx = case["tube.length"] / nx
+    return grain_volume(case) / (8.0 * hx * cross_section_areas(case["tube.diameter"] / 2, ny, nz).max())
+
+
 class GasField:
     """Relative gas pressure P' (Pa) on a cell-centred grid in the tube, with its coupling to grains.
 
-    Arguments (SI): length L, diameter D, particle_diameter d, viscosity eta (Pa s), pressure P0
-    (Pa), superficial_velocity v_s (m/s), nodes (nx, ny, nz), theta (1 = backward Euler, 0.5 =
-    Crank-Nicolson), phi_min (porosity floor), phi_max (porosity ceiling inside kappa, a
-    numerical guard), outlet ("open": P' = 0 on the outlet face; "flux": prescribed outflow v_s A as
-    in the papers), particle_volume (m3; default pi d^3/6), feed_volume_rate (m3/s, m_dot/rho_s of
-    the feed), face ("harmonic" or "arithmetic" mean of the nodes' kappa on a face), deposit
-    ("tube": porosity from the node's tube volume; "cell": from the grid cell hx hy hz), scheme
-    ("unsplit" or "split", used by couple; `step` takes `split`). face, deposit and scheme default
-    to the case keys' defaults (gas.face_permeability, gas.deposit_volume, gas.scheme).
+    The field of a case (default: Case(), the papers' defaults): its grid (grid_nodes), theta
+    (gas.theta, used by `step`), feed volume rate (m3/s, m_dot/rho_s of the feed when
+    gas.inlet_displaced_volume; settable) and the gas kernels' parameters `g`
+    (engine.parameters.gas_parameters), of which `replace` sets some by name over the case's
+    (tests and studies: outlet_open=0.0 for the papers' prescribed outflow v_s A at the outlet).
     """
 
-    def __init__(self, length=0.525, diameter=7e-3, particle_diameter=1.4e-3, viscosity=6.73e-5,
-                 pressure=101325.0, superficial_velocity=1.0, nodes=(150, 2, 2), theta=1.0,
-                 phi_min=0.2, phi_max=PHI_MAX, outlet="open", particle_volume=None,
-                 feed_volume_rate=0.0, face=KEYS["gas.face_permeability"].default,
-                 deposit=KEYS["gas.deposit_volume"].default, scheme=KEYS["gas.scheme"].default):
-        nx, ny, nz = (int(v) for v in nodes)
-        _check(nx >= 2 and ny >= 1 and nz >= 1, "nodes", nodes, "nx >= 2, ny >= 1, nz >= 1")
-        for name, value in (("length", length), ("diameter", diameter),
-                            ("particle_diameter", particle_diameter), ("viscosity", viscosity),
-                            ("pressure", pressure)):
-            _check(value > 0.0, name, value, "> 0")
-        _check(superficial_velocity >= 0.0, "superficial_velocity", superficial_velocity, ">= 0")
-        _check(0.5 <= theta <= 1.0, "theta", theta, "0.5 <= theta <= 1 (unconditionally stable)")
-        _check(0.0 < phi_min < 1.0, "phi_min", phi_min, "0 < phi_min < 1")
-        _check(outlet in ("open", "flux"), "outlet", outlet, '"open" or "flux"')
-        _check(phi_min < phi_max < 1.0, "phi_max", phi_max, "phi_min < phi_max < 1")
-        _check(face in FACE_RULES, "face", face, " or ".join(FACE_RULES))
-        _check(deposit in DEPOSIT_VOLUMES, "deposit", deposit, " or ".join(DEPOSIT_VOLUMES))
-        _check(scheme in SCHEMES, "scheme", scheme, " or ".join(SCHEMES))
-        radius = 0.5 * diameter
-        if particle_volume is None:
-            particle_volume = math.pi * particle_diameter**3 / 6.0
-        self.nodes = (nx, ny, nz)
-        self.theta = float(theta)
-        self._feed_volume_rate = float(feed_volume_rate)
-        g = np.zeros(K.NG)
-        g[K.G_LENGTH] = length
-        g[K.G_RADIUS] = radius
-        g[K.G_HX] = length / nx
-        g[K.G_HY] = diameter / ny
-        g[K.G_HZ] = diameter / nz
-        g[K.G_VP] = particle_volume
-        g[K.G_P0] = pressure
-        g[K.G_ETA] = viscosity
-        g[K.G_DP] = particle_diameter
-        g[K.G_PHI_MAX] = phi_max
-        g[K.G_FACE_ARITHMETIC] = 1.0 if face == "arithmetic" else 0.0
-        g[K.G_CELL_VOLUME] = 1.0 if deposit == "cell" else 0.0
-        g[K.G_SPLIT] = 1.0 if scheme == "split" else 0.0
-        g[K.G_PHI_MIN] = phi_min
-        g[K.G_VS] = superficial_velocity
-        g[K.G_AREA] = math.pi * radius**2
-        g[K.G_OUTLET_OPEN] = 1.0 if outlet == "open" else 0.0
-        self.g = g
-        self.area, self.ay, self.az = build_geometry(length, radius, self.nodes)
-        g[K.G_SOLID_MIN] = particle_volume / (8.0 * g[K.G_HX] * self.area.max())
+    def __init__(self, case: Case | None = None, **replace):
+        from .parameters import feed_volume_rate, gas_parameters  # it imports this module's grid constants
+
+        case = Case() if case is None else case
+        self.nodes = grid_nodes(case)
+        nx, ny, nz = self.nodes
+        self.theta = case["gas.theta"]
+        self._feed_volume_rate = feed_volume_rate(case)
+        self.g = gas_parameters(case, **replace)
+        self.area, self.ay, self.az = build_geometry(case["tube.length"], self.g.tube_radius, self.nodes)
         shape = self.nodes
-        self.pressure = np.zeros(shape)        # P' (Pa); P0 is g[G_P0]
+        self.pressure = np.zeros(shape)        # P' (Pa); P0 is g.background_pressure
         self.dep = np.zeros(shape + (4,))      # solid volume, solid volume x velocity
         self.phi = np.ones(shape)
         self.kappa = np.zeros(shape)
@@ -185,22 +172,22 @@ class GasField:
     def x(self):
         """Node positions along the tube (m)."""
         nx = self.nodes[0]
-        return (np.arange(nx) + 0.5) * self.g[K.G_HX]
+        return (np.arange(nx) + 0.5) * self.g.hx
 
     @property
     def y(self):
         """Node positions across, y (m)."""
-        return -self.g[K.G_RADIUS] + (np.arange(self.nodes[1]) + 0.5) * self.g[K.G_HY]
+        return -self.g.tube_radius + (np.arange(self.nodes[1]) + 0.5) * self.g.hy
 
     @property
     def z(self):
         """Node positions across, z (m)."""
-        return -self.g[K.G_RADIUS] + (np.arange(self.nodes[2]) + 0.5) * self.g[K.G_HZ]
+        return -self.g.tube_radius + (np.arange(self.nodes[2]) + 0.5) * self.g.hz
 
     @property
     def node_volume(self):
         """Tube volume V_j = int w_j chi_tube dV of each node (m3), shape (nx, ny, nz)."""
-        return np.broadcast_to(self.g[K.G_HX] * self.area, self.nodes).copy()
+        return np.broadcast_to(self.g.hx * self.area, self.nodes).copy()
 
     # coupling ---------------------------------------------------------------------------------
     @property
@@ -244,7 +231,7 @@ class GasField:
         field's `scheme`.
         """
         if split is None:
-            split = self.g[K.G_SPLIT] > 0.5
+            split = self.g.split > 0.5
         h = dt / substeps
         args = (self.pressure, self.phi, self.kappa, self.src, self.area, self.ay, self.az, self.g, h,
                 self.theta)
@@ -279,14 +266,9 @@ class GasField:
 
     def diffusion_number(self, dt):
         """Largest D dt / h^2 over the nodes; D = P0 kappa / (eta phi) (eq. 5), h the finest spacing."""
-        h = min(self.g[K.G_HX], self.g[K.G_HY], self.g[K.G_HZ])
-        d = self.g[K.G_P0] * self.kappa / (self.g[K.G_ETA] * self.phi)
+        h = min(self.g.hx, self.g.hy, self.g.hz)
+        d = self.g.background_pressure * self.kappa / (self.g.viscosity * self.phi)
         return float(d.max() * dt / h**2)
-
-
-def _check(ok, name, value, allowed):
-    if not ok:
-        raise ValueError(f"gas: {name} = {value!r} is out of range (allowed: {allowed})")
 
 
 def benchmark(repeats=2000, grains=3200, seed=0):
@@ -299,10 +281,10 @@ def benchmark(repeats=2000, grains=3200, seed=0):
 
     rng = np.random.default_rng(seed)
     f = GasField()
-    r = f.g[K.G_RADIUS] - 0.7e-3
+    r = f.g.tube_radius - 0.7e-3
     rad = r * np.sqrt(rng.random(grains))
     ang = 2.0 * math.pi * rng.random(grains)
-    pos = np.column_stack([rng.random(grains) * 0.25 * f.g[K.G_LENGTH], rad * np.cos(ang),
+    pos = np.column_stack([rng.random(grains) * 0.25 * f.g.tube_length, rad * np.cos(ang),
                            rad * np.sin(ang)])
     vel = rng.normal(0.0, 0.05, (grains, 3))
     force = np.zeros((grains, 3))

@@ -12,11 +12,13 @@ from .contact import ContactModel
 from .feed import Feed
 from .gas import GasField
 from .kernels import gas as gas_kernels
-from .kernels import params
+from .kernels import indices
 from .kernels import slices as S
 from .kernels.contacts import PAIR_BLOCK, evaluate_contacts, pair_buffers
 from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
+from .parameters import BLOCK_TRAVEL, cell_counts, gas_parameters, grain_parameters
+from .parameters import gravity as gravity_vector
 
 PAIRS_PER_GRAIN = 12  # initial half-list capacity; a dense packing within d + skin has about 5
 
@@ -28,9 +30,6 @@ def check_threads(threads: int) -> int:
         raise ValueError(f"threads = {threads!r}: allowed 1 to {limit} (NUMBA_NUM_THREADS, by default the "
                          "number of cores)")
     return int(threads)
-
-
-BLOCK_TRAVEL = 0.02  # piston travel (fraction of d) beyond feed.max_overlap that makes a tube blocked
 
 
 class SimulationError(RuntimeError):
@@ -59,67 +58,17 @@ class Simulation:
         self.dt = self.model.time_step
         self._steps = 0
         self._next_id = 0
-        self._setup_params()
-        self.gas = self._make_gas()
+        self._p = grain_parameters(case)  # what the grain kernels read (engine/parameters.py)
+        self._shape = np.array(cell_counts(case), dtype=np.int64)
+        self.gas = GasField(case)  # a 3-node dummy when the gas is off, so the kernels keep one signature
         self._allocate(self._initial_capacity())
         self._n = np.zeros(1, dtype=np.int64)
-        self._counters = np.zeros(params.NCOUNTERS, dtype=np.int64)
-        self._diag = np.zeros(params.NDIAG)  # overlaps (m) and the piston impulse (N s), params.DIAG_*
+        self._counters = np.zeros(indices.NCOUNTERS, dtype=np.int64)
+        self._diag = np.zeros(indices.NDIAG)  # overlaps (m) and the piston impulse (N s), indices.DIAG_*
         self._dirty = True        # arrays changed outside the time loop: rebuild + forces first
         self._feed_tail = None    # x of the last feed layer created
 
     # ---- set-up -------------------------------------------------------------------------------
-    def _setup_params(self) -> None:
-        c, m = self.case, self.model
-        d = 2 * m.radius
-        p = params.new_params()
-        p[params.DT] = self.dt
-        p[params.MASS], p[params.RADIUS], p[params.INERTIA] = m.mass, m.radius, m.inertia
-        p[params.KN], p[params.GN_PAIR], p[params.GN_WALL] = m.stiffness, m.damping_pair, m.damping_wall
-        p[params.GT], p[params.GT_WALL] = m.tangential_damping_pair, m.tangential_damping_wall
-        p[params.MU_PAIR], p[params.MU_WALL] = m.friction_pair, m.friction_wall
-        p[params.TUBE_RADIUS], p[params.TUBE_LENGTH] = c["tube.diameter"] / 2, c["tube.length"]
-        p[params.GX], p[params.GY], p[params.GZ] = self.gravity
-        p[params.FEED_SPEED] = self.feed.entry_velocity if self.feed.enabled else 0.0
-        p[params.FEED_MAX_OVERLAP] = c["feed.max_overlap"] * d
-        # A jammed tube keeps the piston pressing while it advances; a numerical blow-up near the
-        # feed is a spike. Blocked means pressing for as long as the piston takes to advance
-        # BLOCK_TRAVEL d, long enough for a blow-up to trip the other guards first.
-        speed = self.feed.entry_velocity if self.feed.enabled else 0.0
-        p[params.FEED_BLOCK_STEPS] = math.ceil(BLOCK_TRAVEL * d / (speed * self.dt)) if speed > 0 else 1
-        p[params.SKIN] = c["numerics.neighbor_skin"] * d
-        cut = d + p[params.SKIN]
-        p[params.CELL_X0] = -2 * d
-        ncx = max(1, int((c["tube.length"] + 2 * d - p[params.CELL_X0]) / cut))
-        nyz = max(1, int(c["tube.diameter"] / cut))
-        p[params.CELL_DX] = (c["tube.length"] + 2 * d - p[params.CELL_X0]) / ncx
-        p[params.CELL_DYZ] = c["tube.diameter"] / nyz
-        # Rotation only matters through tangential forces; frictionless grains never spin up.
-        p[params.IMPLICIT_SPIN] = 1.0 if c["numerics.implicit_spin"] else 0.0
-        rotates = (m.friction_pair > 0 or m.friction_wall > 0) and m.tangential_damping > 0
-        p[params.ROTATION] = 1.0 if rotates else 0.0
-        p[params.GAS_ON] = 1.0 if c["gas.enabled"] else 0.0
-        p[params.GAS_INTERVAL] = c["numerics.gas_interval"]
-        p[params.GAS_THETA] = c["gas.theta"]
-        # the volume of the entering grains joins the inlet gas flux (gas.inlet_displaced_volume)
-        displaced = self.feed.enabled and c["gas.inlet_displaced_volume"]
-        p[params.FEED_VOLUME_RATE] = self.feed.mass_flow / c["particles.density"] if displaced else 0.0
-        for slot, key in params.FROM_CASE.items():
-            p[slot] = c[key]
-        self._p = p
-        self._shape = np.array([ncx, nyz, nyz], dtype=np.int64)
-
-    def _make_gas(self) -> GasField:
-        """The gas field (a 3-node dummy when the gas is off, so the kernels keep one signature)."""
-        c = self.case
-        nodes = (c["gas.nodes_x"], c["gas.nodes_y"], c["gas.nodes_z"]) if c["gas.enabled"] else (3, 1, 1)
-        return GasField(length=c["tube.length"], diameter=c["tube.diameter"],
-                        particle_diameter=c["particles.diameter"], viscosity=c["gas.viscosity"],
-                        pressure=c["gas.pressure"], superficial_velocity=c["gas.superficial_velocity"],
-                        nodes=nodes, theta=c["gas.theta"], feed_volume_rate=self._p[params.FEED_VOLUME_RATE],
-                        phi_max=c["gas.porosity_max"], face=c["gas.face_permeability"],
-                        deposit=c["gas.deposit_volume"], scheme=c["gas.scheme"])
-
     def _grains(self) -> Grains:
         """The per-grain arrays as the kernels take them."""
         return Grains(self._pos, self._vel, self._omg, self._force, self._drag, self._torque,
@@ -170,6 +119,9 @@ class Simulation:
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
+        if not hasattr(self._p, "_fields"):  # a state pickled with the parameters as vectors
+            self._p = grain_parameters(self.case)
+            self.gas.g = gas_parameters(self.case)
         self.contact_passes = state.get("contact_passes", False)  # also a state pickled before them
         self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
 
@@ -195,9 +147,7 @@ class Simulation:
     @property
     def gravity(self) -> np.ndarray:
         """Gravity vector (m/s2) from the inclination: 0 deg -> -z, 90 deg -> -x."""
-        theta = math.radians(self.case["tube.inclination_deg"])
-        g = self.case["physics.gravity"]
-        return np.array([-g * math.sin(theta), 0.0, -g * math.cos(theta)])
+        return np.array(gravity_vector(self.case))
 
     # ---- grains in and out --------------------------------------------------------------------
     def add_particles(self, positions, velocities=None, angular_velocities=None) -> np.ndarray:
@@ -260,7 +210,7 @@ class Simulation:
         """Sort, drop outflow and rebuild the neighbour list, growing the list until it fits."""
         while True:
             self._n[0] = rebuild(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters)
-            if not self._counters[params.OVERFLOW]:
+            if not self._counters[indices.OVERFLOW]:
                 return
             self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
 
@@ -270,7 +220,7 @@ class Simulation:
             raise ValueError(f"advance(seconds={seconds}) needs seconds >= 0")
         remaining = int(round(seconds / self.dt))
         # The piston may travel at most d/2 per chunk, so feed layers are always created in time.
-        speed = self._p[params.FEED_SPEED]
+        speed = self._p.feed_speed
         chunk = 2000 if speed == 0 else max(1, min(2000, int(self.model.radius / (speed * self.dt))))
         if self.threads > 1:
             numba.set_num_threads(self.threads)
@@ -282,7 +232,7 @@ class Simulation:
                 self._prepare()
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
                             self.gas.arrays(), self._chunks, self._pairs)
-            if self._counters[params.OVERFLOW]:  # grow the neighbour list and finish the broken step
+            if self._counters[indices.OVERFLOW]:  # grow the neighbour list and finish the broken step
                 self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
@@ -301,16 +251,16 @@ class Simulation:
         return float(self._pos[:n, 0][in_feed].min()) if in_feed.any() else -math.inf
 
     def _check_status(self) -> None:
-        status = self._counters[params.STATUS]
-        if status == params.OK:
+        status = self._counters[indices.STATUS]
+        if status == indices.OK:
             return
-        if status == params.BLOCKED:
+        if status == indices.BLOCKED:
             raise FeedBlocked(
                 f"the tube is blocked at t = {self.time:.4f} s: the feed piston pressed a grain by more "
                 f"than feed.max_overlap = {self.case['feed.max_overlap']:g} d while advancing "
                 f"{BLOCK_TRAVEL:g} d")
-        what = {params.NONFINITE: "a grain position became non-finite (NaN/Inf)",
-                params.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
+        what = {indices.NONFINITE: "a grain position became non-finite (NaN/Inf)",
+                indices.ESCAPED: "a grain left the tube through its wall or inlet"}[int(status)]
         raise SimulationError(f"{what} at t = {self.time:.6f} s; the time step or the contact "
                               f"parameters are too aggressive for this case")
 
@@ -359,34 +309,34 @@ class Simulation:
     @property
     def mass_in(self) -> float:
         """Cumulative grain mass released into the tube by the feed, kg."""
-        return self._counters[params.RELEASED] * self.model.mass
+        return self._counters[indices.RELEASED] * self.model.mass
 
     @property
     def mass_out(self) -> float:
         """Cumulative grain mass that left past the outlet, kg."""
-        return self._counters[params.REMOVED] * self.model.mass
+        return self._counters[indices.REMOVED] * self.model.mass
 
     @property
     def max_overlap(self) -> float:
         """Largest overlap (grain-grain, grain-wall or grain-feed) over every step since the start
         or the last reset_max_overlap(), m."""
-        return float(self._diag[:params.DIAG_RUNNING_MAX + 1].max())
+        return float(self._diag[:indices.DIAG_RUNNING_MAX + 1].max())
 
     @property
     def overlap(self) -> float:
         """Largest overlap (grain-grain, grain-wall or grain-feed) at the current positions (the
         last force evaluation), m."""
-        return float(max(self._diag[params.DIAG_OVERLAP], self._diag[params.DIAG_FEED_OVERLAP]))
+        return float(max(self._diag[indices.DIAG_OVERLAP], self._diag[indices.DIAG_FEED_OVERLAP]))
 
     def reset_max_overlap(self) -> None:
         """Start a new window for max_overlap (run_case: every output frame)."""
-        self._diag[params.DIAG_RUNNING_MAX] = 0.0
+        self._diag[indices.DIAG_RUNNING_MAX] = 0.0
 
     @property
     def piston_impulse(self) -> float:
         """Cumulative axial impulse the feed piston has exerted on the tube grains, N s (its
         change over an interval, divided by the interval, is the mean piston force)."""
-        return float(self._diag[params.DIAG_PISTON_IMPULSE])
+        return float(self._diag[indices.DIAG_PISTON_IMPULSE])
 
     def slice_fields(self, width: float) -> dict[str, np.ndarray]:
         """Slice averages over slices of `width` (m) from the inlet (papers §3.2).
@@ -452,7 +402,7 @@ class Simulation:
             return 0.0
         gas = self.gas
         return float(gas_kernels.pressure_drop(gas.pressure, gas.kappa, gas.u, gas.area, gas.g,
-                                               self._p[params.FEED_VOLUME_RATE]))
+                                               self._p.feed_volume_rate))
 
     def gas_pressure_slices(self, width: float) -> np.ndarray:
         """Gas pressure P' (cross-section mean) at the slice centres of `width` (m), Pa."""

@@ -37,7 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from engine import Case, Simulation  # noqa: E402
-from engine.kernels import params  # noqa: E402
+from engine.kernels import indices  # noqa: E402
 from engine.run import read_initial_state  # noqa: E402
 
 SETTLE = 0.005  # s advanced before timing: compiles the kernels and lets the warm start settle
@@ -68,7 +68,7 @@ def measure(sims: list[Simulation], chunk: float, rounds: int) -> list[dict]:
             cost[k].append((time.process_time() - cpu) / chunk)
             wall[k].append((time.perf_counter() - start) / chunk)
             done = sim._counters - before
-            interval[k].append(done[params.STEPS] / max(done[params.REBUILDS], 1))
+            interval[k].append(done[indices.STEPS] / max(done[indices.REBUILDS], 1))
     rows = []
     for k, sim in enumerate(sims):
         n = sim.n_particles

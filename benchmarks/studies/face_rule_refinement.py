@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from engine import gas
+from engine.case import KEYS, Case
 
 LENGTH, GRAIN, VISCOSITY, VS = 0.525, 1.4e-3, 6.73e-5, 1.0
 SOLID_FRACTION, PLUG_START = 0.55, 0.25
@@ -42,8 +43,9 @@ def tent_fraction(a: float, b: float, x: np.ndarray, h: float) -> np.ndarray:
 
 def plug_drop(nodes_x: int, face: str, plug_length: float, offset: float) -> float:
     """Steady pressure drop (Pa) of the tube holding one deposited plug."""
-    field = gas.GasField(length=LENGTH, particle_diameter=GRAIN, viscosity=VISCOSITY,
-                         superficial_velocity=VS, nodes=(nodes_x, 2, 2), face=face)
+    field = gas.GasField(Case({"tube": {"length": LENGTH}, "particles": {"diameter": GRAIN},
+                               "gas": {"viscosity": VISCOSITY, "superficial_velocity": VS, "nodes_x": nodes_x,
+                                       "nodes_y": 2, "nodes_z": 2, "face_permeability": face}}))
     h = LENGTH / nodes_x
     start = PLUG_START + offset * h
     solid = SOLID_FRACTION * tent_fraction(start, start + plug_length, field.x, h)
@@ -56,7 +58,7 @@ def plug_drop(nodes_x: int, face: str, plug_length: float, offset: float) -> flo
 def table(nodes=(75, 150, 300, 600, 1200)) -> pd.DataFrame:
     """One row per (rule, plug length, offset, nodes): drop and its ratio to the true resistance."""
     rows = []
-    for face in gas.FACE_RULES:
+    for face in KEYS["gas.face_permeability"].choices:
         for plug_length in PLUG_LENGTHS:
             exact = VISCOSITY * VS * plug_length / carman_kozeny(1 - SOLID_FRACTION)
             for offset in OFFSETS:

@@ -25,12 +25,16 @@ import numba
 
 LOCK_NAME = "plugsim-kernels.lock"
 KERNELS = Path(__file__).resolve().parent
+# The declaration of the kernels' named parameters: numba compiles p.friction_pair into a position
+# in the named tuple, and its cache key names the tuple's class, not its fields
+PARAMETERS = KERNELS.parent / "parameters.py"
 
 
-def kernel_source_digest(folder: Path = KERNELS) -> str:
-    """12 hex digits of the SHA-256 of every kernel module's source (name and bytes)."""
+def kernel_source_digest(folder: Path = KERNELS, parameters: Path = PARAMETERS) -> str:
+    """12 hex digits of the SHA-256 of every kernel module's source and of the parameter
+    declaration (name and bytes)."""
     digest = hashlib.sha256()
-    for path in sorted(folder.glob("*.py")):
+    for path in [*sorted(folder.glob("*.py")), parameters]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     return digest.hexdigest()[:12]
 

@@ -21,7 +21,6 @@ import numba as nb
 import numpy as np
 
 from . import laws
-from . import params
 from .laws import FASTMATH
 from .state import Pairs
 
@@ -80,7 +79,7 @@ def contact_forces(grains, n, nbr_start, nbr, p, diag, pairs):
     grains.torque[:n] = 0.0
     grains.viscous_damping[:n] = 0.0
     optional = laws.optional_terms(p)
-    dia = 2.0 * p[params.RADIUS]
+    dia = 2.0 * p.radius
     dmin = np.inf
     fmin = np.inf
     wall_overlap = 0.0
@@ -152,8 +151,8 @@ def _passes_with(optional):
         the scatter's inlet terms, zeros, are skipped then: almost every block)."""
         pos, vel, omg, in_feed = grains.pos, grains.vel, grains.omg, grains.in_feed
         wall = laws.wall_constants(p)
-        r = p[params.RADIUS]
-        inner = p[params.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
+        r = p.radius
+        inner = p.tube_radius - r  # analytic cylinder: overlap = rho + r - R
         inner2 = inner * inner
         nb_ = hi - lo
         xmin = np.inf
@@ -255,7 +254,7 @@ def _passes_with(optional):
         (packed SIMD): force and torques on i, the torque on j (optional terms) and gamma_t if
         viscous; zeros where the normal force pulls."""
         pair = laws.pair_constants(p)
-        dia = 2.0 * p[params.RADIUS]
+        dia = 2.0 * p.radius
         for c in range(m):
             dx = rows[DX, c]
             dy = rows[DY, c]
@@ -309,7 +308,7 @@ def scatter(grains, lo, hi, p, pair_j, start, rows, walls, optional, inlet):
     overlap of a dynamic grain."""
     force, torque, viscous_damping = grains.force, grains.torque, grains.viscous_damping
     wall_normal = grains.wall_normal
-    implicit = p[params.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
+    implicit = p.implicit_spin > 0.0  # viscous_damping is only read (and summed) then
     tjx_row = TJX if optional else TX
     tjy_row = TJY if optional else TY
     tjz_row = TJZ if optional else TZ
@@ -482,14 +481,14 @@ def _contacts_range_with(optional):
         viscous_damping[lo:hi] = 0.0
         pair = laws.pair_constants(p)
         wall = laws.wall_constants(p)
-        r = p[params.RADIUS]
+        r = p.radius
         dia = 2.0 * r
-        inner = p[params.TUBE_RADIUS] - r  # analytic cylinder: overlap = rho + r - R
+        inner = p.tube_radius - r  # analytic cylinder: overlap = rho + r - R
         max_overlap = 0.0
         max_feed = 0.0
         top = hi
         counting = contact_count.shape[0] > 0
-        implicit = p[params.IMPLICIT_SPIN] > 0.0  # viscous_damping is only read (and summed) then
+        implicit = p.implicit_spin > 0.0  # viscous_damping is only read (and summed) then
         for i in range(lo, hi):
             touching = 0
             xi = pos[i, 0]

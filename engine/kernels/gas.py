@@ -3,8 +3,9 @@
 Grid: nx x ny x nz cell-centred nodes; node (i, k, m) sits at x_i = (i + 1/2) hx,
 y_k = -R + (k + 1/2) hy, z_m = -R + (m + 1/2) hz with hx = L/nx, hy = 2R/ny, hz = 2R/nz.
 Scalar fields are (nx, ny, nz) arrays, u is (nx, ny, nz, 3), the deposit `dep` and the
-interpolation source `nodal` are (nx, ny, nz, 4); the parameter vector g (indices G_* below) and
-the geometry arrays (area, ay, az) come from engine.gas.GasField.  Per grain step the caller runs,
+interpolation source `nodal` are (nx, ny, nz, 4); the parameters g (a named tuple: g.hx,
+g.superficial_velocity, ...; declared in engine/parameters.py, GAS) and the geometry arrays (area,
+ay, az) come from engine.gas.GasField.  Per grain step the caller runs,
 in this order:
 
     deposit -> update_fields -> volume_sources -> gas_step (once or sub-cycled)
@@ -23,27 +24,6 @@ GasArrays = namedtuple("GasArrays", "pressure dep phi kappa u src nodal wmat wve
 
 # fastmath without nnan/ninf so that isfinite guards keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
-
-# Index names of the float64 gas parameter vector `g` (SI units).
-G_LENGTH = 0         # tube length L, m
-G_RADIUS = 1         # tube radius R, m
-G_HX = 2             # node spacing along x, m
-G_HY = 3             # node spacing along y, m
-G_HZ = 4             # node spacing along z, m
-G_VP = 5             # grain volume V_p, m3
-G_P0 = 6             # background pressure P0, Pa
-G_ETA = 7            # gas viscosity eta, Pa s
-G_DP = 8             # grain diameter d (Carman-Kozeny), m
-G_PHI_MAX = 9        # porosity ceiling inside kappa only (numerical guard, gas.porosity_max)
-G_PHI_MIN = 10       # porosity floor for over-compressed nodes
-G_VS = 11            # superficial gas velocity v_s, m/s
-G_AREA = 12          # tube cross-section A = pi R^2, m2
-G_OUTLET_OPEN = 13   # 1.0: outlet face held at P' = 0; 0.0: prescribed outflow v_s A (papers' -S)
-G_SOLID_MIN = 14     # floor of 1 - phi_i in the drag: V_p / (8 max V_j), what one deposited grain reads
-G_FACE_ARITHMETIC = 15  # face permeability: 0.0 harmonic mean of the two nodes, 1.0 arithmetic mean
-G_CELL_VOLUME = 16   # deposit normalised by 0.0: the node's tube volume V_j; 1.0: the grid cell hx hy hz
-G_SPLIT = 17         # 1.0: dimension-split theta scheme (gas_step_split) in couple; 0.0: unsplit gas_step
-NG = 18
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -71,12 +51,12 @@ def deposit(pos, vel, n, g, dep):
     """
     nx, ny, nz, _ = dep.shape
     dep[:] = 0.0
-    vp = g[G_VP]
-    length = g[G_LENGTH]
-    r = g[G_RADIUS]
-    ihx = 1.0 / g[G_HX]
-    ihy = 1.0 / g[G_HY]
-    ihz = 1.0 / g[G_HZ]
+    vp = g.grain_volume
+    length = g.tube_length
+    r = g.tube_radius
+    ihx = 1.0 / g.hx
+    ihy = 1.0 / g.hy
+    ihz = 1.0 / g.hz
     for p in range(n):
         x = pos[p, 0]
         if not (x >= 0.0 and x <= length):
@@ -107,8 +87,8 @@ def carman_kozeny(phi, g):
     carries no pressure gradient and a lone grain feels almost no drag (V §4.3). phi_max only
     keeps the conductances within ~1e7 of a plug's, where the block elimination stays accurate.
     """
-    p = min(max(phi, g[G_PHI_MIN]), g[G_PHI_MAX])
-    d = g[G_DP]
+    p = min(max(phi, g.porosity_min), g.porosity_max)
+    d = g.grain_diameter
     return d * d * p * p * p / (180.0 * (1.0 - p) * (1.0 - p))
 
 
@@ -117,20 +97,20 @@ def update_fields(dep, area, g, phi, kappa, u):
     """Node porosity phi, permeability kappa (m2) and grain velocity u (m/s, eq. 8) from a deposit.
 
     phi_j = max(1 - dep_j0 / V_j, phi_min) with V_j = hx * area[k, m] the node's tube volume, or
-    the whole grid cell hx hy hz when g[G_CELL_VOLUME] is set (eq. 8 read on the cubic grid);
+    the whole grid cell hx hy hz when g.cell_volume is set (eq. 8 read on the cubic grid);
     nodes outside the tube (area 0) read phi = 1.  u_j = dep_j[1:4] / dep_j0 (0 where no grains).
     phi, kappa: (nx, ny, nz); u: (nx, ny, nz, 3).
     """
     nx, ny, nz = phi.shape
-    hx = g[G_HX]
-    phi_min = g[G_PHI_MIN]
-    cell = g[G_CELL_VOLUME] > 0.5
+    hx = g.hx
+    phi_min = g.porosity_min
+    cell = g.cell_volume > 0.5
     for i in range(nx):
         for k in range(ny):
             for m in range(nz):
                 vol = hx * area[k, m]
                 if cell and vol > 0.0:
-                    vol = hx * g[G_HY] * g[G_HZ]
+                    vol = hx * g.hy * g.hz
                 s = dep[i, k, m, 0]
                 f = 1.0 - s / vol if vol > 0.0 else 1.0
                 f = max(f, phi_min)
@@ -145,7 +125,7 @@ def update_fields(dep, area, g, phi, kappa, u):
 def _face(a, b, g):
     """Face permeability (m2) between nodes of permeability a and b (gas.face_permeability):
     harmonic mean (two half cells in series) or arithmetic mean."""
-    if g[G_FACE_ARITHMETIC] > 0.5:
+    if g.face_arithmetic > 0.5:
         return 0.5 * (a + b)
     return 2.0 * a * b / (a + b)
 
@@ -160,10 +140,10 @@ def volume_sources(u, area, ay, az, g, feed_volume_rate, src):
     faces carry the face-averaged grain velocity; wall faces carry nothing.
     """
     nx, ny, nz = src.shape
-    p0 = g[G_P0]
-    atot = g[G_AREA]
-    q_in = g[G_VS] * atot + feed_volume_rate
-    open_outlet = g[G_OUTLET_OPEN] > 0.5
+    p0 = g.background_pressure
+    atot = g.tube_area
+    q_in = g.superficial_velocity * atot + feed_volume_rate
+    open_outlet = g.outlet_open > 0.5
     for k in range(ny):
         for m in range(nz):
             a = area[k, m]
@@ -177,7 +157,7 @@ def volume_sources(u, area, ay, az, g, feed_volume_rate, src):
             if open_outlet:
                 src[nx - 1, k, m] -= a * u[nx - 1, k, m, 0]
             else:
-                src[nx - 1, k, m] -= g[G_VS] * a
+                src[nx - 1, k, m] -= g.superficial_velocity * a
     for i in range(nx):
         for k in range(ny - 1):
             for m in range(nz):
@@ -240,8 +220,8 @@ def apply_operator(P, kappa, area, ay, az, g, out):
     including the open outlet (P' = 0 half a cell beyond the last node).  out: (nx, ny, nz).
     """
     nx, ny, nz = P.shape
-    hx = g[G_HX]
-    c0 = g[G_P0] / g[G_ETA]
+    hx = g.hx
+    c0 = g.background_pressure / g.viscosity
     out[:] = 0.0
     for k in range(ny):
         for m in range(nz):
@@ -250,18 +230,18 @@ def apply_operator(P, kappa, area, ay, az, g, out):
                 f = tx * _face(kappa[i, k, m], kappa[i + 1, k, m], g) * (P[i + 1, k, m] - P[i, k, m])
                 out[i, k, m] += f
                 out[i + 1, k, m] -= f
-            if g[G_OUTLET_OPEN] > 0.5:
+            if g.outlet_open > 0.5:
                 out[nx - 1, k, m] -= 2.0 * tx * kappa[nx - 1, k, m] * P[nx - 1, k, m]
     for i in range(nx):
         for k in range(ny - 1):
             for m in range(nz):
-                f = c0 * ay[k, m] / g[G_HY] * _face(kappa[i, k, m], kappa[i, k + 1, m], g) * (
+                f = c0 * ay[k, m] / g.hy * _face(kappa[i, k, m], kappa[i, k + 1, m], g) * (
                     P[i, k + 1, m] - P[i, k, m])
                 out[i, k, m] += f
                 out[i, k + 1, m] -= f
         for k in range(ny):
             for m in range(nz - 1):
-                f = c0 * az[k, m] / g[G_HZ] * _face(kappa[i, k, m], kappa[i, k, m + 1], g) * (
+                f = c0 * az[k, m] / g.hz * _face(kappa[i, k, m], kappa[i, k, m + 1], g) * (
                     P[i, k, m + 1] - P[i, k, m])
                 out[i, k, m] += f
                 out[i, k, m + 1] -= f
@@ -274,11 +254,11 @@ def _assemble_blocks(kappa, phi, area, ay, az, g, tdt, tx, wmat):
     tx[i, b]: conductance between slices i and i + 1 (from gas_step).
     """
     nx, ny, nz = phi.shape
-    hx = g[G_HX]
-    c0 = g[G_P0] / g[G_ETA]
-    ty = tdt * c0 / g[G_HY]
-    tz = tdt * c0 / g[G_HZ]
-    open_outlet = g[G_OUTLET_OPEN] > 0.5
+    hx = g.hx
+    c0 = g.background_pressure / g.viscosity
+    ty = tdt * c0 / g.hy
+    tz = tdt * c0 / g.hz
+    open_outlet = g.outlet_open > 0.5
     wmat[:] = 0.0
     for i in range(nx):
         for k in range(ny):
@@ -323,8 +303,8 @@ def gas_step(P, phi, kappa, src, area, ay, az, g, dt, theta, wmat, wvec):
     """
     nx, ny, nz = P.shape
     nb_ = ny * nz
-    hx = g[G_HX]
-    c0 = g[G_P0] / g[G_ETA]
+    hx = g.hx
+    c0 = g.background_pressure / g.viscosity
     tdt = theta * dt
     edt = (1.0 - theta) * dt
     y = wvec[0]
@@ -394,11 +374,11 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
     work: float64 (10, max(nx, ny, nz)).
     """
     nx, ny, nz = P.shape
-    hx = g[G_HX]
-    c0 = g[G_P0] / g[G_ETA]
+    hx = g.hx
+    c0 = g.background_pressure / g.viscosity
     tdt = theta * dt
     edt = (1.0 - theta) * dt
-    open_outlet = g[G_OUTLET_OPEN] > 0.5
+    open_outlet = g.outlet_open > 0.5
     a = work[0]
     b = work[1]
     c = work[2]
@@ -432,7 +412,7 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
             for i in range(nx):
                 P[i, k, m] = vals[i]
     if ny > 1:
-        hy = g[G_HY]
+        hy = g.hy
         for i in range(nx):
             for m in range(nz):
                 for k in range(ny):
@@ -450,7 +430,7 @@ def gas_step_split(P, phi, kappa, src, area, ay, az, g, dt, theta, work):
                 for k in range(ny):
                     P[i, k, m] = vals[k]
     if nz > 1:
-        hz = g[G_HZ]
+        hz = g.hz
         for i in range(nx):
             for k in range(ny):
                 for m in range(nz):
@@ -475,17 +455,17 @@ def _inlet_face_gradient(P, kappa, u, g, feed_volume_rate, k, m):
 
     Darcy (eq. 3) makes the total volume flux q = u - (kappa/eta) dP/dx; q is the inlet flux.
     """
-    q = g[G_VS] + feed_volume_rate / g[G_AREA]
-    return -g[G_ETA] / kappa[0, k, m] * (q - u[0, k, m, 0])
+    q = g.superficial_velocity + feed_volume_rate / g.tube_area
+    return -g.viscosity / kappa[0, k, m] * (q - u[0, k, m, 0])
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def _outlet_face_gradient(P, kappa, g, k, m):
     """dP'/dx (Pa/m) on the outlet face of line (k, m)."""
     nx = P.shape[0]
-    if g[G_OUTLET_OPEN] > 0.5:
-        return -P[nx - 1, k, m] / (0.5 * g[G_HX])
-    return -g[G_ETA] / kappa[nx - 1, k, m] * g[G_VS]
+    if g.outlet_open > 0.5:
+        return -P[nx - 1, k, m] / (0.5 * g.hx)
+    return -g.viscosity / kappa[nx - 1, k, m] * g.superficial_velocity
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
@@ -498,9 +478,9 @@ def pressure_gradient(P, phi, kappa, u, g, feed_volume_rate, nodal):
     boundary conditions.
     """
     nx, ny, nz = P.shape
-    hx = g[G_HX]
-    hy = g[G_HY]
-    hz = g[G_HZ]
+    hx = g.hx
+    hy = g.hy
+    hz = g.hz
     for k in range(ny):
         for m in range(nz):
             for i in range(1, nx - 1):
@@ -538,12 +518,12 @@ def drag_forces(pos, n, nodal, g, force, accumulate):
     to (True).  Grains outside 0 <= x <= L get no drag.
     """
     nx, ny, nz, _ = nodal.shape
-    vp = g[G_VP]
-    length = g[G_LENGTH]
-    r = g[G_RADIUS]
-    ihx = 1.0 / g[G_HX]
-    ihy = 1.0 / g[G_HY]
-    ihz = 1.0 / g[G_HZ]
+    vp = g.grain_volume
+    length = g.tube_length
+    r = g.tube_radius
+    ihx = 1.0 / g.hx
+    ihy = 1.0 / g.hy
+    ihz = 1.0 / g.hz
     for p in range(n):
         x = pos[p, 0]
         fx = 0.0
@@ -567,9 +547,9 @@ def drag_forces(pos, n, nodal, g, force, accumulate):
                 gx += w * nodal[i, k, m, 1]
                 gy += w * nodal[i, k, m, 2]
                 gz += w * nodal[i, k, m, 3]
-            # a grain that was deposited reads 1 - phi_i >= G_SOLID_MIN; the floor only guards
+            # a grain that was deposited reads 1 - phi_i >= g.solid_min; the floor only guards
             # grains added after the deposit
-            s = -vp / max(1.0 - ph, g[G_SOLID_MIN])
+            s = -vp / max(1.0 - ph, g.solid_min)
             fx = s * gx
             fy = s * gy
             fz = s * gz
@@ -587,21 +567,21 @@ def drag_forces(pos, n, nodal, g, force, accumulate):
 def pressure_drop(P, kappa, u, area, g, feed_volume_rate):
     """Inlet-face minus outlet-face relative pressure (Pa), area-averaged over the cross-section."""
     nx, ny, nz = P.shape
-    half = 0.5 * g[G_HX]
+    half = 0.5 * g.hx
     total = 0.0
     for k in range(ny):
         for m in range(nz):
             p_in = P[0, k, m] - half * _inlet_face_gradient(P, kappa, u, g, feed_volume_rate, k, m)
             p_out = P[nx - 1, k, m] + half * _outlet_face_gradient(P, kappa, g, k, m)
             total += area[k, m] * (p_in - p_out)
-    return total / g[G_AREA]
+    return total / g.tube_area
 
 
 @nb.njit(cache=True, fastmath=FASTMATH)
 def gas_content(P, phi, area, g):
     """Sum of phi_j V_j P'_j (Pa m3): proportional to the gas mass excess, conserved by gas_step."""
     nx, ny, nz = P.shape
-    hx = g[G_HX]
+    hx = g.hx
     total = 0.0
     for i in range(nx):
         for k in range(ny):
@@ -615,7 +595,7 @@ def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accum
     """One grain step of the gas: deposit, fields, `substeps` gas steps of dt/substeps, drag forces.
 
     The five kernels above in the required order on the arrays of `gas` (a GasArrays); P'
-    (gas.pressure) is advanced in place and the drag goes to force (see drag_forces).  g[G_SPLIT]
+    (gas.pressure) is advanced in place and the drag goes to force (see drag_forces).  g.split
     selects the split scheme, which uses wvec as its work array (GasField sizes wvec for both).
     """
     g = gas.g
@@ -623,7 +603,7 @@ def couple(pos, vel, n, gas, dt, substeps, theta, feed_volume_rate, force, accum
     update_fields(gas.dep, gas.area, g, gas.phi, gas.kappa, gas.u)
     volume_sources(gas.u, gas.area, gas.ay, gas.az, g, feed_volume_rate, gas.src)
     h = dt / substeps
-    if g[G_SPLIT] > 0.5:
+    if g.split > 0.5:
         nx, ny, nz = gas.pressure.shape
         longest = max(nx, max(ny, nz))
         work = gas.wvec.reshape(gas.wvec.size)[:10 * longest].reshape((10, longest))

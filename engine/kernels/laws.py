@@ -1,8 +1,9 @@
 """The force laws, one place each: contact (grain-grain and grain-wall) and body forces (SI units).
 
 Each law is a small function inlined into the kernels that loop over contacts (contacts.py) or
-grains (stepper.py); its constants come from the parameter vector once per kernel call
-(`pair_constants`, `wall_constants`, `kick_constants`), as a tuple that stays in registers.
+grains (stepper.py); its constants come from the grain parameters p (a named tuple declared in
+engine/parameters.py, GRAIN) once per kernel call (`pair_constants`, `wall_constants`,
+`kick_constants`), as a named tuple (`Contact`, `Kick`) that stays in registers.
 
 Normal: F_n = max(0, k_n delta + gamma_n v_n) along the line of centres (never attractive).
 Tangential: F_t = -min(mu F_n, gamma_t |v_t|) v_t/|v_t| at the contact point (no history), with
@@ -15,38 +16,45 @@ pair, I at a wall).
 """
 
 import math
+from collections import namedtuple
 
 import numba as nb
-
-from . import params
 
 # fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
+# The constants of one kind of contact (grain-grain or grain-wall): grain radius r (m), normal
+# stiffness k_n (N/m) and damping gamma_n (N s/m), Coulomb coefficient mu, tangential damping gamma_t
+# (N s/m), rolling-resistance coefficient mu_r and the rolling cap I_rel/dt (kg m2/s)
+Contact = namedtuple("Contact", "radius stiffness damping friction tangential_damping rolling_resistance rolling_cap")
+
+
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def pair_constants(p):
-    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I_rel/dt) between two grains."""
-    return (p[params.RADIUS], p[params.KN], p[params.GN_PAIR], p[params.MU_PAIR], p[params.GT],
-            p[params.ROLLING_RESISTANCE], 0.5 * p[params.INERTIA] / p[params.DT])
+    """The Contact between two grains (I_rel = I/2)."""
+    return Contact(radius=p.radius, stiffness=p.stiffness, damping=p.damping_pair, friction=p.friction_pair,
+                   tangential_damping=p.tangential_damping_pair, rolling_resistance=p.rolling_resistance,
+                   rolling_cap=0.5 * p.inertia / p.dt)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def wall_constants(p):
-    """(r, k_n, gamma_n, mu, gamma_t, mu_r, rolling cap I/dt) between a grain and a wall."""
-    return (p[params.RADIUS], p[params.KN], p[params.GN_WALL], p[params.MU_WALL], p[params.GT_WALL],
-            p[params.ROLLING_RESISTANCE], p[params.INERTIA] / p[params.DT])
+    """The Contact between a grain and a wall (I_rel = I)."""
+    return Contact(radius=p.radius, stiffness=p.stiffness, damping=p.damping_wall, friction=p.friction_wall,
+                   tangential_damping=p.tangential_damping_wall, rolling_resistance=p.rolling_resistance,
+                   rolling_cap=p.inertia / p.dt)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def optional_terms(p):
     """Whether a case switches on a contact term that is not in the papers' model (then the
     contact loop with the optional terms runs)."""
-    return p[params.ROLLING_RESISTANCE] > 0.0
+    return p.rolling_resistance > 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt, branchless=False):
+def tangential(vcx, vcy, vcz, nx, ny, nz, fn, friction, gt, branchless=False):
     """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
     if the contact is in its viscous (sticking) branch, else 0.
 
@@ -61,7 +69,7 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt, branchless=False):
     if branchless:
         slipping = not (vt <= 0.0)
         fv = gt * vt
-        fc = mu * fn
+        fc = friction * fn
         ft = min(fc, fv)
         s = -ft / (vt if slipping else 1.0)
         g = gt if fv < fc else 0.0
@@ -71,7 +79,7 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, mu, gt, branchless=False):
     if vt <= 0.0:
         return 0.0, 0.0, 0.0, gt
     fv = gt * vt
-    fc = mu * fn
+    fc = friction * fn
     ft = min(fc, fv)
     s = -ft / vt
     return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
@@ -98,7 +106,7 @@ def rolling_torque(fn, wx, wy, wz, r, mu_r, cap, branchless=False):
 def normal_force(delta, vn, c):
     """Normal force magnitude k_n delta + gamma_n v_n (N; repulsive when positive) at overlap delta
     (m) and normal approach velocity vn (m/s); c = pair_ or wall_constants."""
-    return c[1] * delta + c[2] * vn
+    return c.stiffness * delta + c.damping * vn
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -114,9 +122,10 @@ def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, opt
     loop with them and one without), so that the loop without them keeps its arithmetic and speed;
     `branchless` likewise (tangential).
     """
-    r, _, _, mu, gt, mu_r, cap = c
+    r = c.radius
     ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, mu, gt, branchless)
+                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, c.friction, c.tangential_damping,
+                                  branchless)
     fx = -fn * nx + ftx
     fy = -fn * ny + fty
     fz = -fn * nz + ftz
@@ -125,7 +134,7 @@ def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, opt
     ty = r * (nz * ftx - nx * ftz)
     tz = r * (nx * fty - ny * ftx)
     if optional:  # each term is zero when its key is 0
-        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, mu_r, cap, branchless)
+        mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, c.rolling_resistance, c.rolling_cap, branchless)
         return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
     return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
 
@@ -153,24 +162,29 @@ def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional, branchl
     return fn, fx, fy, fz, tx, ty, tz, g
 
 
+# The constants of a kick by kick_dt: the velocity per force kick_dt/m, the spin per torque
+# kick_dt/I, the implicit-spin factor kick_dt r^2/I, the velocity change by the body forces (gravity)
+# and the two switches
+Kick = namedtuple("Kick", "velocity_per_force spin_per_torque implicit_factor gravity_x gravity_y gravity_z "
+                          "rotate implicit")
+
+
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def kick_constants(p, kick_dt):
-    """(a, b, c, gx, gy, gz, rotate, implicit) of a kick by kick_dt: the velocity per force kick_dt/m,
-    the spin per torque kick_dt/I, the implicit-spin factor kick_dt r^2/I, the velocity change by
-    the body forces (gravity) and the two switches."""
-    return (kick_dt / p[params.MASS], kick_dt / p[params.INERTIA],
-            kick_dt * p[params.RADIUS] * p[params.RADIUS] / p[params.INERTIA],
-            kick_dt * p[params.GX], kick_dt * p[params.GY], kick_dt * p[params.GZ],
-            p[params.ROTATION] > 0.0, p[params.IMPLICIT_SPIN] > 0.0)
+    """The Kick of the grain parameters p by kick_dt."""
+    return Kick(velocity_per_force=kick_dt / p.mass, spin_per_torque=kick_dt / p.inertia,
+                implicit_factor=kick_dt * p.radius * p.radius / p.inertia, gravity_x=kick_dt * p.gravity_x,
+                gravity_y=kick_dt * p.gravity_y, gravity_z=kick_dt * p.gravity_z, rotate=p.rotation > 0.0,
+                implicit=p.implicit_spin > 0.0)
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def velocity_kick(vx, vy, vz, fx, fy, fz, k, drift):
     """A grain's velocity v (m/s) kicked by the force F (contacts and gas drag, N) and the body
-    forces (gravity) with the constants k of kick_constants. The kick before a drift sums
-    v + a F + g left to right, the closing half kick v + (a F + g): both orders are kept so that
-    the rounding of a step stays that of the engine's reference runs."""
-    a, _, _, gx, gy, gz, _, _ = k
+    forces (gravity) with the Kick k. The kick before a drift sums v + a F + g left to right, the
+    closing half kick v + (a F + g): both orders are kept so that the rounding of a step stays that
+    of the engine's reference runs."""
+    a, gx, gy, gz = k.velocity_per_force, k.gravity_x, k.gravity_y, k.gravity_z
     if drift:
         return vx + a * fx + gx, vy + a * fy + gy, vz + a * fz + gz
     return vx + (a * fx + gx), vy + (a * fy + gy), vz + (a * fz + gz)
@@ -178,8 +192,8 @@ def velocity_kick(vx, vy, vz, fx, fy, fz, k, drift):
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def spin_kick(gamma_sum, k):
-    """Spin change per torque (1/(kg m2) s) of a kick with the constants k, given the sum of gamma_t
-    of the grain's viscous contacts (N s/m): divided by 1 + kick_dt r^2/I sum(gamma_t) with
+    """Spin change per torque (1/(kg m2) s) of a kick with the Kick k, given the sum of gamma_t of
+    the grain's viscous contacts (N s/m): divided by 1 + kick_dt r^2/I sum(gamma_t) with
     numerics.implicit_spin."""
-    _, b, c, _, _, _, _, implicit = k
-    return b / (1.0 + c * gamma_sum) if implicit else b
+    b = k.spin_per_torque
+    return b / (1.0 + k.implicit_factor * gamma_sum) if k.implicit else b

@@ -7,19 +7,19 @@ the outlet are dropped in the same pass.
 
 import numba as nb
 
-from . import params
+from . import indices
 
 
 @nb.njit(cache=True, inline="always")
 def _cell_index(x, y, z, p, shape):
     """(cx, cy, cz) of a point, clamped to the grid (clamping only merges far cells, never splits)."""
-    cx = int((x - p[params.CELL_X0]) / p[params.CELL_DX])
-    half = p[params.TUBE_RADIUS]
-    cy = int((y + half) / p[params.CELL_DYZ])
-    cz = int((z + half) / p[params.CELL_DYZ])
-    cx = min(max(cx, 0), shape[params.NCX] - 1)
-    cy = min(max(cy, 0), shape[params.NCY] - 1)
-    cz = min(max(cz, 0), shape[params.NCZ] - 1)
+    cx = int((x - p.cell_x0) / p.cell_dx)
+    half = p.tube_radius
+    cy = int((y + half) / p.cell_dyz)
+    cz = int((z + half) / p.cell_dyz)
+    cx = min(max(cx, 0), shape[indices.NCX] - 1)
+    cy = min(max(cy, 0), shape[indices.NCY] - 1)
+    cz = min(max(cz, 0), shape[indices.NCZ] - 1)
     return cx, cy, cz
 
 
@@ -30,10 +30,10 @@ def sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start,
 
     Returns the new number of grains. cell_start (ncells + 1) holds each cell's first sorted index.
     """
-    length = p[params.TUBE_LENGTH]
-    ncy = shape[params.NCY]
-    ncz = shape[params.NCZ]
-    ncells = shape[params.NCX] * ncy * ncz
+    length = p.tube_length
+    ncy = shape[indices.NCY]
+    ncz = shape[indices.NCZ]
+    ncells = shape[indices.NCX] * ncy * ncz
     cell_start[:] = 0
     n_removed = 0
     for i in range(n):
@@ -71,7 +71,7 @@ def sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start,
     for k in range(m):
         tmpi[k] = in_feed[order[k]]
     in_feed[:m] = tmpi[:m]
-    counters[params.REMOVED] += n_removed
+    counters[indices.REMOVED] += n_removed
     return m
 
 
@@ -82,12 +82,12 @@ def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
     Returns the number of pairs, or -1 if nbr is too small (the caller grows it and calls again).
     Pairs of two kinematic (feed) grains are skipped.
     """
-    r = p[params.RADIUS]
-    cut = 2.0 * r + p[params.SKIN]
+    r = p.radius
+    cut = 2.0 * r + p.skin
     cut2 = cut * cut
-    ncx = shape[params.NCX]
-    ncy = shape[params.NCY]
-    ncz = shape[params.NCZ]
+    ncx = shape[indices.NCX]
+    ncy = shape[indices.NCY]
+    ncz = shape[indices.NCZ]
     cap = nbr.shape[0]
     k = 0
     for i in range(n):

@@ -11,7 +11,7 @@ Grains = namedtuple("Grains",
                     "pos vel omg force drag torque viscous_damping wall_normal gid in_feed pos_ref")
 
 # Cell grid and half neighbour list: grid shape (ncx, ncy, ncz), cell starts, each grain's cell,
-# sort order and sort work arrays, list starts per grain and the list (params.CELL_*, SKIN).
+# sort order and sort work arrays, list starts per grain and the list (p.cell_*, p.skin).
 Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nbr_start nbr")
 
 # Thread work arrays of contacts.evaluate_contacts: spill rows of forces, torques and viscous damping

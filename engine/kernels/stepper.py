@@ -13,7 +13,7 @@ import math
 import numba as nb
 
 from . import laws
-from . import params
+from . import indices
 from .contacts import evaluate_contacts
 from .gas import couple
 from .laws import FASTMATH
@@ -32,8 +32,8 @@ def rebuild(grains, n, p, nbrs, counters):
                          counters)
     pos_ref[:n] = pos[:n]
     npairs = build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr)
-    counters[params.OVERFLOW] = 1 if npairs < 0 else 0
-    counters[params.REBUILDS] += 1
+    counters[indices.OVERFLOW] = 1 if npairs < 0 else 0
+    counters[indices.REBUILDS] += 1
     return n
 
 
@@ -43,7 +43,7 @@ def _kick(grains, n, p, kick_dt):
     vel, omg, force, drag, torque = grains.vel, grains.omg, grains.force, grains.drag, grains.torque
     viscous_damping, in_feed = grains.viscous_damping, grains.in_feed
     k = laws.kick_constants(p, kick_dt)
-    rotate = k[6]
+    rotate = k.rotate
     for i in range(n):
         if in_feed[i]:
             continue
@@ -67,21 +67,21 @@ def _kick_drift(grains, n, p, kick_dt, counters):
     was released), and sets counters[STATUS] on a non-finite position or a grain outside the cylinder.
     """
     pos, vel, omg, force, drag, torque, viscous_damping, _, _, in_feed, pos_ref = grains
-    dt = p[params.DT]
-    r = p[params.RADIUS]
+    dt = p.dt
+    r = p.radius
     k = laws.kick_constants(p, kick_dt)
-    rotate = k[6]
-    feed_dx = p[params.FEED_SPEED] * dt
-    limit2 = 0.25 * p[params.SKIN] * p[params.SKIN]
-    outlet = p[params.TUBE_LENGTH]
-    tube2 = p[params.TUBE_RADIUS] * p[params.TUBE_RADIUS]
+    rotate = k.rotate
+    feed_dx = p.feed_speed * dt
+    limit2 = 0.25 * p.skin * p.skin
+    outlet = p.tube_length
+    tube2 = p.tube_radius * p.tube_radius
     need = 0
     for i in range(n):
         if in_feed[i]:
             pos[i, 0] += feed_dx
             if pos[i, 0] >= r:
                 in_feed[i] = 0
-                counters[params.RELEASED] += 1
+                counters[indices.RELEASED] += 1
                 need = 1  # the list holds no pairs of two feed grains: add the released one's
         else:
             vx, vy, vz = laws.velocity_kick(vel[i, 0], vel[i, 1], vel[i, 2], force[i, 0] + drag[i, 0],
@@ -101,10 +101,10 @@ def _kick_drift(grains, n, p, kick_dt, counters):
             pos[i, 1] = y
             pos[i, 2] = z
             if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-                counters[params.STATUS] = params.NONFINITE
+                counters[indices.STATUS] = indices.NONFINITE
                 return 1
             if y * y + z * z > tube2 or x < -r:
-                counters[params.STATUS] = params.ESCAPED
+                counters[indices.STATUS] = indices.ESCAPED
                 return 1
             if x > outlet:
                 need = 1
@@ -122,36 +122,36 @@ def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks, pairs
 
     state_n[0] is the number of grains (updated); forces must be valid for the current state.
     The feed piston always moves (the papers' enforced mass flow); when it has pressed a grain deeper
-    than p[FEED_MAX_OVERLAP] for p[FEED_BLOCK_STEPS] steps in a row, the step is completed and
+    than p.feed_max_overlap for p.feed_block_steps steps in a row, the step is completed and
     counters[STATUS] = BLOCKED. `grains`, `nbrs`, `chunks` and `pairs` are the bundles of state.py, `gas`
-    a gas.GasArrays.
+    a gas.GasArrays, `p` the grain parameters (engine/parameters.py, GRAIN).
     """
     n = state_n[0]
-    dt = p[params.DT]
+    dt = p.dt
     kick_dt = 0.5 * dt  # the opening half kick; afterwards closing + opening kicks merged
     taken = 0
     for _ in range(nsteps):
         need = _kick_drift(grains, n, p, kick_dt, counters)
-        if counters[params.STATUS] != params.OK:
+        if counters[indices.STATUS] != indices.OK:
             break
         if need:
             n = rebuild(grains, n, p, nbrs, counters)
-            if counters[params.OVERFLOW]:
+            if counters[indices.OVERFLOW]:
                 break  # velocities are at the half step: the caller's finish_step completes it
-        if p[params.GAS_ON] > 0.0 and counters[params.STEPS] % int(p[params.GAS_INTERVAL]) == 0:
-            couple(grains.pos, grains.vel, n, gas, dt * p[params.GAS_INTERVAL], 1, p[params.GAS_THETA],
-                   p[params.FEED_VOLUME_RATE], grains.drag, False)
+        if p.gas_on > 0.0 and counters[indices.STEPS] % int(p.gas_interval) == 0:
+            couple(grains.pos, grains.vel, n, gas, dt * p.gas_interval, 1, p.gas_theta,
+                   p.feed_volume_rate, grains.drag, False)
         _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
         taken += 1
         kick_dt = dt
-        if diag[params.DIAG_FEED_OVERLAP] <= p[params.FEED_MAX_OVERLAP]:
-            counters[params.PRESSED_STEPS] = 0
+        if diag[indices.DIAG_FEED_OVERLAP] <= p.feed_max_overlap:
+            counters[indices.PRESSED_STEPS] = 0
         else:
-            counters[params.PRESSED_STEPS] += 1
-            if counters[params.PRESSED_STEPS] >= p[params.FEED_BLOCK_STEPS]:
-                counters[params.STATUS] = params.BLOCKED
+            counters[indices.PRESSED_STEPS] += 1
+            if counters[indices.PRESSED_STEPS] >= p.feed_block_steps:
+                counters[indices.STATUS] = indices.BLOCKED
                 break
-    if taken > 0 and (taken == nsteps or counters[params.STATUS] == params.BLOCKED):
+    if taken > 0 and (taken == nsteps or counters[indices.STATUS] == indices.BLOCKED):
         _kick(grains, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
@@ -163,9 +163,9 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks, pairs):
     evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks, pairs)
     # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
     # so that the run guard sees every step, not only a frame's last
-    diag[params.DIAG_RUNNING_MAX] = max(diag[params.DIAG_RUNNING_MAX], diag[params.DIAG_OVERLAP],
-                                        diag[params.DIAG_FEED_OVERLAP])
-    if p[params.FEED_SPEED] > 0.0:
+    diag[indices.DIAG_RUNNING_MAX] = max(diag[indices.DIAG_RUNNING_MAX], diag[indices.DIAG_OVERLAP],
+                                         diag[indices.DIAG_FEED_OVERLAP])
+    if p.feed_speed > 0.0:
         # the feed grains carry the reactions of their contacts: minus their sum is the piston's push
         # (a separate pass, 1.6 us for 3 200 grains, ~1 % of a step, keeps the contact loop as it is)
         in_feed, force = grains.in_feed, grains.force
@@ -173,12 +173,12 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks, pairs):
         for i in range(n):
             if in_feed[i]:
                 push -= force[i, 0]
-        diag[params.DIAG_PISTON_IMPULSE] += push * p[params.DT]
-    counters[params.STEPS] += 1
+        diag[indices.DIAG_PISTON_IMPULSE] += push * p.dt
+    counters[indices.STEPS] += 1
 
 
 @nb.njit(cache=True)
 def finish_step(grains, n, p, nbrs, counters, diag, chunks, pairs):
     """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
     _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
-    _kick(grains, n, p, 0.5 * p[params.DT])
+    _kick(grains, n, p, 0.5 * p.dt)

@@ -14,7 +14,7 @@ import sys
 import numpy as np
 
 from engine.case import Case
-from engine.kernels import contacts, params
+from engine.kernels import contacts
 from engine.simulation import Simulation
 from engine.kernels.stepper import rebuild
 
@@ -24,7 +24,7 @@ CASE = "config/cases/horizontal.yaml"
 def packing() -> Simulation:
     sim = Simulation(Case.from_yaml(CASE, ["gas.enabled=false"]))
     k = np.arange(60)
-    r = 0.6 * (sim._p[params.TUBE_RADIUS] - sim.model.radius)
+    r = 0.6 * (sim._p.tube_radius - sim.model.radius)
     pos = np.stack([0.0006 + 0.0012 * k, r * np.cos(0.3 * k), r * np.sin(0.3 * k)], axis=1)  # touching
     rng = np.random.default_rng(1)
     sim.add_particles(pos, rng.normal(0.0, 0.05, (60, 3)), rng.normal(0.0, 5.0, (60, 3)))

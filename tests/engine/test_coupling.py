@@ -33,8 +33,8 @@ def darcy_drop(sim):
     gas = sim.gas
     phi = (gas.phi * gas.area).sum(axis=(1, 2)) / gas.area.sum()
     kappa = np.array([gas_kernels.carman_kozeny(p, gas.g) for p in phi])
-    return float((gas.g[gas_kernels.G_ETA] * sim.case["gas.superficial_velocity"] / kappa).sum()
-                 * gas.g[gas_kernels.G_HX])
+    return float((gas.g.viscosity * sim.case["gas.superficial_velocity"] / kappa).sum()
+                 * gas.g.hx)
 
 
 def mean_drop(sim, seconds, samples=50):

@@ -11,8 +11,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from engine import gas
-from engine.case import Case
+from engine.case import Case, CaseError
 from engine.kernels import gas as K
+from engine.parameters import gas_parameters
 
 EPS = np.finfo(float).eps
 L, D, DP = 0.525, 7e-3, 1.4e-3
@@ -28,6 +29,21 @@ def carman_kozeny(phi, d=DP):
 
 
 KAPPA_EMPTY = carman_kozeny(1.0)  # what an empty node reads, m2
+
+
+def field(nodes=None, outlet="open", feed_volume_rate=0.0, grain_diameter=None, **keys):
+    """The gas field of the default case with gas.<key> values `keys`, gas nodes (nx, ny, nz), the
+    outlet ("open": P' = 0 on the outlet face, the engine's; "flux": the papers' prescribed outflow
+    v_s A), a feed volume rate (m3/s) and particles.diameter."""
+    values = {f"gas.{key}": value for key, value in keys.items()}
+    if nodes is not None:
+        values.update(zip(("gas.nodes_x", "gas.nodes_y", "gas.nodes_z"), nodes))
+    if grain_diameter is not None:
+        values["particles.diameter"] = grain_diameter
+    f = gas.GasField(Case(values), **({} if outlet == "open" else {"outlet_open": 0.0}))
+    if feed_volume_rate:
+        f.feed_volume_rate = feed_volume_rate
+    return f
 
 
 def diffusivity(phi, eta=ETA):
@@ -68,7 +84,7 @@ def operator(f):
     """Sparse L and capacity C of C dP/dt = L P + src, assembled independently of gas_step."""
     nx, ny, nz = f.nodes
     hx, hy, hz = L / nx, D / ny, D / nz
-    c0 = P0 / f.g[K.G_ETA]
+    c0 = P0 / f.g.viscosity
     idx = np.arange(nx * ny * nz).reshape(nx, ny, nz)
     kap = f.kappa
     rows, cols, vals = [], [], []
@@ -79,7 +95,7 @@ def operator(f):
         cols.extend([b, a, a, b])
         vals.extend([t, t, -t, -t])
 
-    if f.g[K.G_FACE_ARITHMETIC] > 0.5:
+    if f.g.face_arithmetic > 0.5:
         harm = lambda a, b: 0.5 * (a + b)  # noqa: E731
     else:
         harm = lambda a, b: 2 * a * b / (a + b)  # noqa: E731
@@ -95,7 +111,7 @@ def operator(f):
                 if m < nz - 1:
                     link(idx[i, k, m], idx[i, k, m + 1],
                          c0 * f.az[k, m] / hz * harm(kap[i, k, m], kap[i, k, m + 1]))
-        if f.g[K.G_OUTLET_OPEN] > 0.5 and i == nx - 1:
+        if f.g.outlet_open > 0.5 and i == nx - 1:
             diag[idx[i].ravel()] -= 2 * c0 * (f.area / hx * kap[i]).ravel()
     op = sp.coo_matrix((vals, (rows, cols)), shape=(idx.size,) * 2).tocsr() + sp.diags(diag)
     return op.tocsc(), (f.phi * hx * f.area[None]).ravel()
@@ -112,7 +128,7 @@ def uniform_points(n, rng):
 
 @pytest.mark.parametrize("nodes", [(150, 2, 2), (20, 4, 4), (10, 7, 5), (8, 12, 12)])
 def test_node_volumes_sum_to_the_tube(nodes):
-    f = gas.GasField(nodes=nodes)
+    f = field(nodes=nodes)
     # the tent weights sum to 1 everywhere, so the node volumes tile the tube; the quadrature is
     # rescaled to pi R^2 but that factor is ~1e-10 from 1 (midpoint rule in the angle, 2e5 points)
     assert f.node_volume.sum() == pytest.approx(math.pi * R**2 * L, rel=1e-12)
@@ -133,8 +149,9 @@ def test_uniform_packing_reads_uniform_porosity(nodes):
     rng = np.random.default_rng(1)
     n = 1_500_000
     pts = uniform_points(n, rng)
-    vp = 0.6 * math.pi * R**2 * L / n
-    f = gas.GasField(nodes=nodes, particle_volume=vp)
+    # grains of volume 0.6 pi R^2 L / n
+    f = field(nodes=nodes, grain_diameter=(6 / math.pi * 0.6 * math.pi * R**2 * L / n) ** (1 / 3))
+    vp = f.g.grain_volume
     f.deposit(pts, rng.normal(size=(n, 3)))
     # every weight set sums to 1: total solid volume is n V_p up to the round-off of n additions
     assert f.dep[..., 0].sum() == pytest.approx(n * vp, rel=n * EPS)
@@ -162,19 +179,19 @@ def test_uniform_packing_reads_uniform_porosity(nodes):
 
 
 def test_grains_outside_the_tube_length_are_skipped():
-    f = gas.GasField(nodes=(10, 2, 2))
+    f = field(nodes=(10, 2, 2))
     pos = np.array([[-1e-4, 0, 0], [L + 1e-4, 0, 0], [0.0, -R, R], [L, R, -R], [0.1, 0, 0]])
     f.deposit(pos)
     # the three inside (edges included, weights clamped) each deposit exactly V_p
-    assert f.dep[..., 0].sum() == pytest.approx(3 * f.g[K.G_VP], rel=4 * EPS)
-    assert f.dep[0, 0, 1, 0] == pytest.approx(f.g[K.G_VP], rel=EPS)
-    assert f.dep[-1, 1, 0, 0] == pytest.approx(f.g[K.G_VP], rel=EPS)
+    assert f.dep[..., 0].sum() == pytest.approx(3 * f.g.grain_volume, rel=4 * EPS)
+    assert f.dep[0, 0, 1, 0] == pytest.approx(f.g.grain_volume, rel=EPS)
+    assert f.dep[-1, 1, 0, 0] == pytest.approx(f.g.grain_volume, rel=EPS)
 
 
 def test_grain_velocity_field_is_the_deposited_mean():
     """u_j = sum w v V_p / sum w V_p (eq. 8): a packet of grains moving alike gives u = v."""
     rng = np.random.default_rng(2)
-    f = gas.GasField(nodes=(30, 2, 2))
+    f = field(nodes=(30, 2, 2))
     pts = uniform_points(2000, rng)
     pts[:, 0] *= 0.3
     v = np.array([0.3, -0.1, 0.05])
@@ -207,7 +224,7 @@ def mode_rate(f, phi, transverse):
 
 
 def run_mode(theta, steps, transverse=False):
-    f = gas.GasField(superficial_velocity=0.0, theta=theta)
+    f = field(superficial_velocity=0.0, theta=theta)
     f.set_solid_fraction(0.6)
     rate, _ = mode_rate(f, 0.4, transverse)
     _, shape = mode_field(f, transverse)
@@ -218,7 +235,7 @@ def run_mode(theta, steps, transverse=False):
 
 
 def test_mode_decays_at_the_analytic_rate():
-    f = gas.GasField(superficial_velocity=0.0, theta=0.5)
+    f = field(superficial_velocity=0.0, theta=0.5)
     f.set_solid_fraction(0.6)
     rate, continuum = mode_rate(f, 0.4, False)
     ratio, _, f, shape = run_mode(0.5, 400)
@@ -252,7 +269,7 @@ def test_time_convergence_order(theta, order, transverse):
 @pytest.mark.parametrize("nodes", [(150, 2, 2), (40, 1, 1), (30, 3, 4)])
 def test_darcy_gradient_in_a_fixed_bed(outlet, vs, nodes):
     """Eq. (3) with u = 0: grad P = -eta v_s / kappa(phi) and a drop eta v_s L / kappa."""
-    f = gas.GasField(superficial_velocity=vs, outlet=outlet, nodes=nodes)
+    f = field(superficial_velocity=vs, outlet=outlet, nodes=nodes)
     f.set_solid_fraction(0.6)
     kappa = carman_kozeny(0.4)
     for _ in range(40):  # backward Euler with dt = 1 s: error shrinks by 1/(1 + rate dt) < 0.02
@@ -274,7 +291,7 @@ def test_plug_resistance_of_each_face_rule(face, cells_of_resistance):
     plug's resistive length. Harmonic faces make each end face half a plug cell (l = 10 hx, the
     plug's true length); arithmetic faces let the empty node's kappa short-circuit both half
     cells (l = 9 hx)."""
-    f = gas.GasField(nodes=(150, 2, 2), face=face)
+    f = field(nodes=(150, 2, 2), face_permeability=face)
     sf = np.zeros(f.nodes)
     sf[60:70] = 0.6
     f.set_solid_fraction(sf)
@@ -288,19 +305,22 @@ def test_plug_resistance_of_each_face_rule(face, cells_of_resistance):
 
 
 def test_a_bare_field_reads_eq5_as_a_case_does():
-    """GasField() without face/deposit/scheme discretises as the case defaults do (a bare field
-    in a test or study is the engine's model)."""
+    """GasField() is the default case's field (a bare field in a test or study is the engine's
+    model), and its parameters are the case's keys by name."""
     case = Case()
     bare = gas.GasField()
-    assert bare.g[K.G_FACE_ARITHMETIC] == (case["gas.face_permeability"] == "arithmetic")
-    assert bare.g[K.G_CELL_VOLUME] == (case["gas.deposit_volume"] == "cell")
-    assert bare.g[K.G_SPLIT] == (case["gas.scheme"] == "split")
+    assert bare.g == gas_parameters(case) and bare.nodes == (150, 2, 2) and bare.theta == case["gas.theta"]
+    assert bare.g.face_arithmetic == (case["gas.face_permeability"] == "arithmetic")
+    assert bare.g.cell_volume == (case["gas.deposit_volume"] == "cell")
+    assert bare.g.split == (case["gas.scheme"] == "split")
+    assert bare.g.superficial_velocity == case["gas.superficial_velocity"]
+    assert gas.GasField(Case({"gas": {"enabled": False}})).nodes == gas.DUMMY_NODES
 
 
 def test_cell_deposit_reads_the_packing_over_the_whole_grid_cell():
     """gas.deposit_volume = cell: the same grains over hx hy hz instead of the node's tube share
     (pi R^2 / 4 of a 2 x 2 line): a tube packed at solid fraction 0.6 reads 0.6 pi / 4."""
-    tube, cell = gas.GasField(), gas.GasField(deposit="cell")
+    tube, cell = gas.GasField(), field(deposit_volume="cell")
     for f in (tube, cell):
         f.set_solid_fraction(0.6)
     assert np.allclose(1 - tube.phi, 0.6, rtol=1e-12)
@@ -311,7 +331,7 @@ def test_darcy_gradient_in_a_moving_bed_with_feed():
     """A bed moving at U with the feed volume (1 - phi) U A: grad P = -eta (v_s - phi U) / kappa."""
     phi, vs, speed = 0.4, 1.0, 0.2
     area = math.pi * R**2
-    f = gas.GasField(superficial_velocity=vs, feed_volume_rate=(1 - phi) * speed * area)
+    f = field(superficial_velocity=vs, feed_volume_rate=(1 - phi) * speed * area)
     f.set_solid_fraction(1 - phi, velocity=(speed, 0, 0))
     for _ in range(40):
         f.step(1.0)
@@ -346,7 +366,7 @@ def random_bed(f, rng, stratified=False):
 @pytest.mark.parametrize("theta", [1.0, 0.5])
 def test_step_equals_a_direct_sparse_solve(nodes, theta):
     rng = np.random.default_rng(3)
-    f = gas.GasField(nodes=nodes, theta=theta)
+    f = field(nodes=nodes, theta=theta)
     random_bed(f, rng)
     f.deposit(uniform_points(500, rng), rng.normal(size=(500, 3)))  # non-zero div u source
     p_old = rng.normal(size=nodes) * 10
@@ -387,7 +407,7 @@ def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
 def test_gas_content_is_conserved_with_balanced_fluxes(theta, face, measured):
     """Both ends at flux v_s A (papers' BC), grains still: sum phi V P' is invariant."""
     rng = np.random.default_rng(5)
-    f = gas.GasField(outlet="flux", superficial_velocity=2.0, theta=theta, face=face)
+    f = field(outlet="flux", superficial_velocity=2.0, theta=theta, face_permeability=face)
     random_bed(f, rng)
     f.pressure[:] = rng.normal(size=f.nodes) * 100
     start = f.gas_content()
@@ -411,11 +431,11 @@ def test_gas_content_is_conserved_with_balanced_fluxes(theta, face, measured):
 def test_gas_budget_with_open_outlet_and_moving_grains():
     """One step changes sum phi V P' by dt (P0 (Q_in - grain outflow) - outlet Darcy flux)."""
     rng = np.random.default_rng(6)
-    f = gas.GasField(feed_volume_rate=1e-7)
+    f = field(feed_volume_rate=1e-7)
     pts = uniform_points(3000, rng)
     f.deposit(pts, rng.normal(size=(3000, 3)) * 0.1)
     area = f.area
-    q_in = f.g[K.G_VS] * math.pi * R**2 + f.feed_volume_rate
+    q_in = f.g.superficial_velocity * math.pi * R**2 + f.feed_volume_rate
     grain_out = np.sum(area * f.u[-1, :, :, 0])
     # interior grain fluxes telescope: the sources sum to the boundary fluxes (to round-off)
     assert f.src.sum() == pytest.approx(P0 * (q_in - grain_out), rel=1e-12)
@@ -434,8 +454,8 @@ def test_gas_budget_with_open_outlet_and_moving_grains():
 
 def test_substeps_equal_repeated_steps():
     rng = np.random.default_rng(7)
-    a = gas.GasField(nodes=(20, 2, 2))
-    b = gas.GasField(nodes=(20, 2, 2))
+    a = field(nodes=(20, 2, 2))
+    b = field(nodes=(20, 2, 2))
     for f in (a, b):
         random_bed(f, rng)
     b.dep[:] = a.dep
@@ -452,7 +472,7 @@ def test_substeps_equal_repeated_steps():
 def test_single_grain_in_a_uniform_gradient(bed):
     """F = -V_p grad P / (1 - phi_i), i.e. acceleration -grad P / (rho_s (1 - phi_i)) (eq. 6)."""
     f = gas.GasField()
-    vp = f.g[K.G_VP]
+    vp = f.g.grain_volume
     grain = np.array([[0.2013, 0.0007, -0.0011]])
     if bed:
         f.set_solid_fraction(0.6)
@@ -477,14 +497,14 @@ def test_single_grain_in_a_uniform_gradient(bed):
 
 
 def test_drag_overwrites_or_accumulates():
-    f = gas.GasField(nodes=(20, 2, 2))
+    f = field(nodes=(20, 2, 2))
     f.set_solid_fraction(0.5)
     f.pressure[:] = -1000.0 * f.x[:, None, None]
     f.pressure_gradient()
     pos = np.array([[0.1, 0.0, 0.0], [0.2, 0.001, 0.0], [L + 0.01, 0, 0]])
     force = np.ones((4, 3))
     K.drag_forces(pos, 3, f.nodal, f.g, force, True)
-    expect = f.g[K.G_VP] * 1000.0 / 0.5
+    expect = f.g.grain_volume * 1000.0 / 0.5
     assert np.allclose(force[:2, 0], 1 + expect) and np.allclose(force[2], 1.0)
     assert np.all(force[3] == 1.0)  # rows >= n untouched
     K.drag_forces(pos, 3, f.nodal, f.g, force, False)
@@ -498,8 +518,8 @@ def test_couple_kernel_matches_the_wrapper_sequence(scheme):
     pos = uniform_points(n, rng)
     pos[:, 0] *= 0.3
     vel = rng.normal(size=(n, 3)) * 0.1
-    a = gas.GasField(feed_volume_rate=2e-7, scheme=scheme)
-    b = gas.GasField(feed_volume_rate=2e-7, scheme=scheme)
+    a = field(feed_volume_rate=2e-7, scheme=scheme)
+    b = field(feed_volume_rate=2e-7, scheme=scheme)
     a.deposit(pos, vel)
     a.step(1e-5, substeps=2, split=scheme == "split")
     expect = a.drag_forces(pos)
@@ -523,7 +543,7 @@ def startup(vs, eta, dt, theta, steps=None, bed=None):
     By default as many steps as backward Euler needs to bring the slowest empty-tube mode
     (rate D (pi / 2L)^2) down by 1e-8.
     """
-    f = gas.GasField(superficial_velocity=vs, viscosity=eta, theta=theta)
+    f = field(superficial_velocity=vs, viscosity=eta, theta=theta)
     if bed is not None:
         f.set_solid_fraction(bed)
     op, _ = operator(f)
@@ -575,7 +595,7 @@ def test_default_theta_is_monotone_with_a_plug(dt):
 def test_crank_nicolson_oscillates_at_huge_diffusion_numbers():
     """theta = 1/2 amplifies stiff modes by (1 - z/2)/(1 + z/2) -> -1: a zig-zag in time."""
     vs, eta, dt = 1.0, 6.73e-5, 1e-4
-    f = gas.GasField(superficial_velocity=vs, viscosity=eta)
+    f = field(superficial_velocity=vs, viscosity=eta)
     assert f.diffusion_number(dt) > 1e4
     cn, steady, _ = startup(vs, eta, dt, theta=0.5, steps=100)
     be, _, _ = startup(vs, eta, dt, theta=1.0, steps=100)
@@ -596,7 +616,7 @@ def test_pressure_spike_sign_flips_unless_backward_euler(theta, factor):
     step, with the stiff-limit factor -(1 - theta)/theta; backward Euler decays it monotonically."""
     values = {}
     for th in (theta, 1.0):
-        f = gas.GasField(superficial_velocity=0.0, theta=th)
+        f = field(superficial_velocity=0.0, theta=th)
         f.pressure[75, 0, 0] = 100.0
         hist = []
         for _ in range(6):
@@ -614,13 +634,20 @@ def test_pressure_spike_sign_flips_unless_backward_euler(theta, factor):
 
 # --- input checks --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kwargs", [{"theta": 0.4}, {"theta": 1.1}, {"nodes": (1, 2, 2)},
-                                    {"viscosity": 0.0}, {"phi_min": 1.0}, {"outlet": "closed"},
-                                    {"superficial_velocity": -1.0}, {"phi_max": 1.0},
-                                    {"face": "geometric"}, {"deposit": "sphere"}, {"scheme": "adi"}])
+@pytest.mark.parametrize("kwargs", [{"theta": 0.4}, {"theta": 1.1}, {"nodes_x": 1}, {"viscosity": 0.0},
+                                    {"superficial_velocity": -1.0}, {"porosity_max": 1.0},
+                                    {"face_permeability": "geometric"}, {"deposit_volume": "sphere"},
+                                    {"scheme": "adi"}])
 def test_bad_input_is_refused_naming_the_key(kwargs):
-    with pytest.raises(ValueError, match=next(iter(kwargs))):
-        gas.GasField(**kwargs)
+    with pytest.raises(CaseError, match="gas." + next(iter(kwargs))):
+        field(**kwargs)
+
+
+def test_a_replaced_parameter_must_exist_and_be_a_number():
+    with pytest.raises(ValueError, match="no parameter 'outlet'"):
+        gas.GasField(Case(), outlet=0.0)
+    with pytest.raises(ValueError, match="outlet_open = nan"):
+        gas.GasField(Case(), outlet_open=math.nan)
 
 
 def test_drag_on_a_grain_missing_from_the_deposit_stays_finite():
@@ -629,11 +656,11 @@ def test_drag_on_a_grain_missing_from_the_deposit_stays_finite():
     f.pressure[:] = -1000.0 * f.x[:, None, None]
     force = f.drag_forces(np.array([[0.2, 0.0, 0.0]]))
     assert np.all(np.isfinite(force))
-    assert force[0, 0] == pytest.approx(f.g[K.G_VP] * 1000.0 / f.g[K.G_SOLID_MIN], rel=1e-12)
+    assert force[0, 0] == pytest.approx(f.g.grain_volume * 1000.0 / f.g.solid_min, rel=1e-12)
     # and the floor never binds for a deposited grain: it reads at least its own share
     rng = np.random.default_rng(9)
     pts = uniform_points(200, rng)
     for p in pts:
         f.deposit(p[None])
         phi_i = sum(float(w[0]) * f.phi[i[0], k[0], m[0]] for i, k, m, w in corner_weights(f, p[None]))
-        assert 1 - phi_i >= f.g[K.G_SOLID_MIN] * (1 - 1e-12)
+        assert 1 - phi_i >= f.g.solid_min * (1 - 1e-12)

@@ -132,7 +132,6 @@ def test_rolling_resistance_off_by_default_leaves_a_rolling_grain_rolling():
 
 def test_rolling_resistance_between_grains_acts_against_their_relative_spin():
     from engine.kernels import laws
-    from engine.kernels import params
 
     @numba.njit
     def torques(p, rolling, fn):
@@ -141,8 +140,8 @@ def test_rolling_resistance_between_grains_acts_against_their_relative_spin():
         return laws.surface_forces(fn, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, c, rolling)
 
     p = Simulation(grain_case("particles.rolling_resistance=0.1"))._p
-    r = p[params.RADIUS]
-    cap = 0.5 * p[params.INERTIA] * 2.0 / p[params.DT]  # (I/2) |w_rel| / dt: one step cannot reverse w_rel
+    r = p.radius
+    cap = 0.5 * p.inertia * 2.0 / p.dt  # (I/2) |w_rel| / dt: one step cannot reverse w_rel
     fn = 1e-5  # N: mu_r r F_n = 7e-10 N m, below the cap (3e-8 N m at the defaults)
     assert 0.1 * r * fn < cap
     off = np.array(torques(p, False, fn))
@@ -229,7 +228,7 @@ def test_neighbor_list_matches_brute_force():
     sim.add_particles(np.column_stack([x, rho * np.cos(phi), rho * np.sin(phi)]))
     sim._prepare()
     pos = sim._pos[:n]
-    cutoff = D_GRAIN + sim._p[17]
+    cutoff = D_GRAIN + sim._p.skin
     expect = brute_force_pairs(pos, cutoff)
     got = {(min(i, j), max(i, j)) for i in range(n)
            for j in sim._nbr[sim._nbr_start[i]:sim._nbr_start[i + 1]].tolist()}

@@ -9,7 +9,6 @@ import pytest
 from engine import Case, Simulation
 from engine.bench import settled_simulation
 from engine.cli import main as cli_main
-from engine.kernels import params
 from engine.kernels.contacts import contact_forces, contact_forces_chunked, pair_buffers
 from engine.kernels.state import Chunks
 
@@ -26,8 +25,7 @@ def _forces(sim, nchunks, pairs=None):
     n, cap = sim.n_particles, len(sim._pos)
     force, torque, wall, diag = np.zeros((cap, 3)), np.zeros((cap, 3)), np.zeros(cap), np.zeros(3)
     damping = np.zeros(cap)  # the sum of gamma_t of each grain's viscous contacts (numerics.implicit_spin)
-    p = sim._p.copy()
-    p[params.IMPLICIT_SPIN] = 1.0  # so that the viscous damping is summed
+    p = sim._p._replace(implicit_spin=1.0)  # so that the viscous damping is summed
     grains = sim._grains()._replace(force=force, torque=torque, viscous_damping=damping, wall_normal=wall)
     args = (grains, n, sim._nbr_start, sim._nbr, p, diag)
     if nchunks == 1:
