@@ -16,7 +16,7 @@ from collections import namedtuple
 from dataclasses import dataclass
 from typing import Callable
 
-from . import contact, gas
+from . import contact, gas_grid
 from .case import KEYS, Case
 
 BLOCK_TRAVEL = 0.02  # piston travel (fraction of d) beyond feed.max_overlap that makes a tube blocked
@@ -173,17 +173,17 @@ GAS = (
     Parameter("tube_length", "tube.length", "m", "tube length L"),
     Parameter("tube_radius", tube_radius, "m", "tube radius R"),
     Parameter("tube_area", lambda case: math.pi * tube_radius(case) ** 2, "m2", "tube cross-section A = pi R^2"),
-    Parameter("hx", lambda case: case["tube.length"] / gas.grid_nodes(case)[0], "m", "node spacing along x"),
-    Parameter("hy", lambda case: case["tube.diameter"] / gas.grid_nodes(case)[1], "m", "node spacing along y"),
-    Parameter("hz", lambda case: case["tube.diameter"] / gas.grid_nodes(case)[2], "m", "node spacing along z"),
-    Parameter("grain_volume", gas.grain_volume, "m3", "grain volume V_p"),
+    Parameter("hx", lambda case: case["tube.length"] / gas_grid.grid_nodes(case)[0], "m", "node spacing along x"),
+    Parameter("hy", lambda case: case["tube.diameter"] / gas_grid.grid_nodes(case)[1], "m", "node spacing along y"),
+    Parameter("hz", lambda case: case["tube.diameter"] / gas_grid.grid_nodes(case)[2], "m", "node spacing along z"),
+    Parameter("grain_volume", gas_grid.grain_volume, "m3", "grain volume V_p"),
     Parameter("grain_diameter", "particles.diameter", "m", "grain diameter d (Carman-Kozeny)"),
     Parameter("background_pressure", "gas.pressure", "Pa", "background pressure P0"),
     Parameter("viscosity", "gas.viscosity", "Pa s", "gas viscosity eta"),
     Parameter("superficial_velocity", "gas.superficial_velocity", "m/s", "superficial gas velocity v_s"),
     Parameter("porosity_max", "gas.porosity_max", "1", "porosity ceiling inside kappa only (a numerical guard)"),
-    Parameter("porosity_min", lambda case: gas.PHI_MIN, "1", "porosity floor of over-compressed nodes"),
-    Parameter("solid_min", gas.solid_min, "1", "floor of 1 - phi_i in the drag: what one deposited grain reads"),
+    Parameter("porosity_min", lambda case: gas_grid.PHI_MIN, "1", "porosity floor of over-compressed nodes"),
+    Parameter("solid_min", gas_grid.solid_min, "1", "floor of 1 - phi_i in the drag: what one deposited grain reads"),
     Parameter("outlet_open", lambda case: 1.0, "switch",
               "outlet face held at P' = 0 (off: the papers' prescribed outflow v_s A)"),
     Parameter("face_arithmetic", lambda case: float(case["gas.face_permeability"] == "arithmetic"), "switch",

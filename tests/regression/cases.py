@@ -201,11 +201,13 @@ def reduce_case(ds) -> dict:
 
 def kernel_cache_dir() -> Path:
     """A numba cache folder for the current numba source of the engine (engine/kernels/*.py,
-    engine/gas.py and the kernels' parameter declaration engine/parameters.py), in the temporary
-    folder: a new source compiles afresh (about 45 s of CPU), an unchanged one reuses it."""
+    engine/gas.py, engine/gas_grid.py and the kernels' parameter declaration
+    engine/parameters.py), in the temporary folder: a new source compiles afresh (about 45 s of
+    CPU), an unchanged one reuses it."""
     digest = hashlib.sha256()
     engine = ROOT / "engine"
-    for path in sorted((engine / "kernels").glob("*.py")) + [engine / "gas.py", engine / "parameters.py"]:
+    sources = [engine / name for name in ("gas.py", "gas_grid.py", "parameters.py")]
+    for path in sorted((engine / "kernels").glob("*.py")) + sources:
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     import numba
     digest.update(numba.__version__.encode())
