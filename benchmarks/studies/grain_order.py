@@ -329,17 +329,22 @@ def rebuild_interval(sim: Simulation, seconds: float) -> float:
 
 def forces_runs(sims: dict, passes: bool) -> tuple[dict, int]:
     """Runs timing `calls` one-thread contact-force evaluations (single loop, or in passes) per order,
-    each on its own copy, called from compiled code (engine.bench's loop); and `calls`."""
+    called from compiled code (engine.bench's loop), each on a fresh copy of the order's state (the
+    copy uncounted: arrays at new addresses each time, so that no one placement in memory decides
+    an order's time); and `calls`."""
     count = contact_count(next(iter(sims.values())))
     calls = max(3, math.ceil(FORCE_SECONDS / (35e-9 * (count["pairs"] + count["walls"]))))
-    runs = {}
-    for name, sim in sims.items():
+
+    def run(sim):
         work = copy.deepcopy(sim)
         pairs = contacts.pair_buffers() if passes else contacts.pair_buffers(0)
         grains, n, diag = work._grains(), int(work._n[0]), work._diag.copy()
-        runs[name] = (lambda grains=grains, n=n, work=work, diag=diag, pairs=pairs:
-                      _run_forces(calls, grains, n, work._nbr_start, work._nbr, work._p, diag, pairs))
-    return runs, calls
+        c0, w0 = _clock()
+        _run_forces(calls, grains, n, work._nbr_start, work._nbr, work._p, diag, pairs)
+        c1, w1 = _clock()
+        return c1 - c0, w1 - w0
+
+    return {name: (lambda sim=sim: run(sim)) for name, sim in sims.items()}, calls
 
 
 def step_runs(sims: dict, window: int) -> tuple[dict, int, int, list]:
