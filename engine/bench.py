@@ -96,7 +96,7 @@ def contact_count(sim: Simulation) -> dict:
     n, d, r = sim.n_particles, 2 * sim.model.radius, sim.model.radius
     pos, start, dynamic = sim._pos[:n], sim._nbr_start[:n + 1], sim._in_feed[:n] == 0
     first = np.repeat(np.arange(n), np.diff(start))
-    offset = pos[sim._nbr[:start[n]]] - pos[first]
+    offset = sim._pos[sim._nbr[:start[n]]] - pos[first]  # a neighbour may be a row beyond n (feed)
     pairs = int(np.count_nonzero(np.einsum("ij,ij->i", offset, offset) < d * d))
     inner = sim.case["tube.diameter"] / 2 - r
     walls = int(np.count_nonzero(dynamic & (pos[:, 1] ** 2 + pos[:, 2] ** 2 > inner * inner)))
