@@ -88,6 +88,32 @@ def passages(slugs: pd.DataFrame, positions, t_start: float | None = None,
     return rows.sort_values(["position", "time"]).reset_index(drop=True)
 
 
+def choose_slug(slugs, selection, x0, times, window):
+    """(slug_id, time (s) of its passage at x0 (m)) of the slug to show in a window of `window` s
+    within the snapshot times `times`: the first of `selection` (a table with slug_id) passing x0
+    there, else the passing slug with the most grains, else (-1, the middle of the snapshots)."""
+    lo, hi = times[0] + window / 2, times[-1] - window / 2
+    if len(slugs):
+        passing = passages(slugs, [x0])
+        passing = passing[(passing["time"] >= lo) & (passing["time"] <= hi)]
+        preferred = passing[passing["slug_id"].isin(selection["slug_id"])] if len(selection) else passing[:0]
+        for table in (preferred, passing.sort_values("n_particles", ascending=False)):
+            if len(table):
+                row = table.iloc[0]
+                return int(row["slug_id"]), float(row["time"])
+    return -1, float((times[0] + times[-1]) / 2)
+
+
+def covering_window(slugs, slug_id, x0):
+    """Times (s) during which the slug covers x0 (x_start <= x0 <= x_end), or None."""
+    if slug_id < 0:
+        return None
+    rows = slugs[(slugs["slug_id"] == slug_id) & (slugs["x_start"] <= x0) & (slugs["x_end"] >= x0)]
+    if not len(rows):
+        return None
+    return float(rows["time"].min()), float(rows["time"].max())
+
+
 def time_weighted(slugs: pd.DataFrame, position: float, quantity: str, half_width: float,
                   t_start: float | None = None, t_end: float | None = None) -> dict[str, float]:
     """Mean of `quantity` over every frame in [t_start, t_end] whose slug centre lies within

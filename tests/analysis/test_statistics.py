@@ -106,3 +106,27 @@ def test_per_passage_and_time_weighted_means_of_slow_and_fast_slugs():
     w = time_weighted(table, x, "max_velocity", S.L_TUBE / 60)
     assert w["n_slugs"] == 6 and w["mean"] == row["max_velocity_time_mean"]
     assert w["sem"] > 0
+
+
+def test_the_slug_shown_passes_mid_tube_within_the_snapshots(random_lengths):
+    from analysis.statistics import choose_slug, covering_window
+    slugs = random_lengths
+    x0, window = S.L_TUBE / 2, 0.2
+    times = np.arange(10.0, 14.0, 0.01)  # snapshots over 10-14 s
+    passing = passages(slugs, [x0])
+    inside = passing[(passing["time"] >= 10.1) & (passing["time"] <= 13.9)]
+    # with no selection: the passing slug with the most grains
+    slug_id, t = choose_slug(slugs, slugs[:0], x0, times, window)
+    biggest = inside.sort_values("n_particles", ascending=False).iloc[0]
+    assert (slug_id, t) == (int(biggest["slug_id"]), float(biggest["time"]))
+    # a selected slug passing there wins, even a smaller one
+    smallest = inside.sort_values("n_particles").iloc[0]
+    chosen = choose_slug(slugs, smallest.to_frame().T[["slug_id"]], x0, times, window)
+    assert chosen == (int(smallest["slug_id"]), float(smallest["time"]))
+    # it covers x0 for about (length + ramps) / 0.3 m/s around its passage
+    lo, hi = covering_window(slugs, chosen[0], x0)
+    assert lo <= chosen[1] <= hi and 0.0 < hi - lo < (0.08 + 2 * S.RAMP) / 0.3
+    # no slug passes: the middle of the snapshots, no covering window
+    slug_id, t = choose_slug(slugs[:0], slugs[:0], x0, times, window)
+    assert slug_id == -1 and t == pytest.approx((times[0] + times[-1]) / 2, abs=1e-12)
+    assert covering_window(slugs, -1, x0) is None

@@ -19,37 +19,12 @@ import xarray as xr
 from _helpers import ensure_parent, read_table, setup_logging, snakemake_or_cli
 
 
-def choose_slug(slugs, selection, x0, times, window):
-    """(slug_id, time of passage at x0) of the slug to show, or (-1, middle of the snapshots)."""
-    from analysis.statistics import passages
-
-    lo, hi = times[0] + window / 2, times[-1] - window / 2
-    if len(slugs):
-        passing = passages(slugs, [x0])
-        passing = passing[(passing["time"] >= lo) & (passing["time"] <= hi)]
-        preferred = passing[passing["slug_id"].isin(selection["slug_id"])] if len(selection) else passing[:0]
-        for table in (preferred, passing.sort_values("n_particles", ascending=False)):
-            if len(table):
-                row = table.iloc[0]
-                return int(row["slug_id"]), float(row["time"])
-    return -1, float((times[0] + times[-1]) / 2)
-
-
-def covering_window(slugs, slug_id, x0):
-    """Times (s) during which the slug covers x0 (x_start <= x0 <= x_end), or None."""
-    if slug_id < 0:
-        return None
-    rows = slugs[(slugs["slug_id"] == slug_id) & (slugs["x_start"] <= x0) & (slugs["x_end"] >= x0)]
-    if not len(rows):
-        return None
-    return float(rows["time"].min()), float(rows["time"].max())
-
-
 def main(smk) -> None:
     log = setup_logging(smk)
     from analysis.casefile import geometry, open_case
     from analysis.snapshots import (cross_section, snapshot, snapshot_times,
                                     time_average_by_height, velocity_by_height)
+    from analysis.statistics import choose_slug, covering_window
 
     ds = open_case(smk.input.case)
     slugs = read_table(smk.input.slugs)
