@@ -118,8 +118,10 @@ def test_the_snapshot_analysis_reads_the_run(case_file, tmp_path):
     assert t == 0.0 and pos.shape == vel.shape == (len(plug()), 3)
     sections = analysis.cross_section_series(ds)
     assert sections.sizes["snapshot_time"] == ds.sizes["snapshot_time"]
-    # a volume fraction; the ball-point sampling of the packed plug overshoots a full pixel by < 1 %
-    assert 0.5 < float(sections["volume_fraction"].max()) < 1.01
+    # a volume fraction of the packed plug: some pixel more than half full; a pixel inside the lens
+    # of two touching grains counts both (overlaps up to 0.2 d are 0.28 mm deep, pixels 0.18 mm
+    # wide), so its fraction may exceed 1 but stays below the 2 of two grains
+    assert 0.5 < float(sections["volume_fraction"].max()) < 2.0
     heights = analysis.velocity_height_series(ds)
     unit = ds["snapshot_velocity"].attrs["units"]
     assert heights["velocity"].attrs["units"] == unit
