@@ -53,7 +53,7 @@ def _number(name: str, raw, origin: str) -> float:
 
 
 # ---- derived constants that belong to no model part (those of the contact law are in
-# engine/contact.py, those of the gas grid in engine/gas.py) ----------------------------------------
+# engine/contact.py, those of the gas grid in engine/gas_grid.py) ---------------------------------
 def tube_radius(case: Case) -> float:
     """R = D/2, m."""
     return case["tube.diameter"] / 2
