@@ -28,13 +28,15 @@ def bed(superficial_velocity, face="arithmetic"):
     return sim
 
 
-def darcy_drop(sim):
-    """Pressure drop of gas at v_s through the node porosities along the tube (eq. 3 with u = 0), Pa."""
+def darcy_drop(sim, grain_velocity=0.0):
+    """Pressure drop of gas at v_s through the node porosities along the tube (eq. 3), Pa, for
+    grains moving together at grain_velocity (m/s along the axis): the gas then passes them at the
+    superficial velocity v_s - grain_velocity (the volume flux through the tube is v_s)."""
     gas = sim.gas
     phi = (gas.phi * gas.area).sum(axis=(1, 2)) / gas.area.sum()
     kappa = np.array([gas_kernels.carman_kozeny(p, gas.g) for p in phi])
-    return float((gas.g.viscosity * sim.case["gas.superficial_velocity"] / kappa).sum()
-                 * gas.g.hx)
+    relative = sim.case["gas.superficial_velocity"] - grain_velocity
+    return float((gas.g.viscosity * relative / kappa).sum() * gas.g.hx)
 
 
 def mean_drop(sim, seconds, samples=50):
@@ -67,7 +69,8 @@ def test_bed_below_minimum_fluidisation_stays_put_and_follows_darcy(face):
     # 0.2 %). An arithmetic face between a packed and a nearly empty node has about half the empty
     # node's kappa, so each end loses up to half a cell of resistance: at most 1/10 of this 10-cell
     # bed, and never more resistance than Darcy's (measured 5.7 % less).
-    ratio = drop / darcy_drop(sim)
+    # The creeping bed sinks at up to 2 mm/s, 8 % of v_s: the gas passes it that much faster.
+    ratio = drop / darcy_drop(sim, grain_velocity=shift / 0.05)
     if face == "harmonic":
         assert ratio == pytest.approx(1.0, abs=0.03)
     else:
