@@ -156,6 +156,36 @@ def test_warm_start_from_next_chains_points_towards_the_last_value():
     assert plan.warm_source[("h_vs", point("2"))] == ("h_default", "base")
 
 
+def test_empty_start_runs_the_named_points_from_an_empty_tube_despite_warm_start():
+    sweeps = {"h_default": single(),
+              "h_vs": curve([0.5, 1.0, 2.0], warm_start={"sweep": "h_default"},
+                            empty_start={"gas.superficial_velocity": [0.5, 2.0]})}
+    plan = Plan(config(sweeps))
+    assert plan.warm_source == {("h_vs", "gas.superficial_velocity~1"): ("h_default", "base")}
+    assert plan.simulate_inputs("h_vs", "gas.superficial_velocity~0.5") == {"base": H}
+
+
+@pytest.mark.parametrize("empty, message", [
+    ({"gas.superficial_velocity": [3.0]}, r"empty_start: gas.superficial_velocity = 3.0 must be one of its values"),
+    ({"gas.viscosity": [1e-5]}, r"empty_start: 'gas.viscosity' is not one of its parameters"),
+    ({"gas.superficial_velocty": [1.0]}, r"empty_start: unknown case key 'gas.superficial_velocty'"),
+])
+def test_empty_start_with_an_unknown_parameter_or_value_is_refused(empty, message):
+    sweeps = {"h_default": single(), "h_vs": curve([1.0, 2.0], warm_start={"sweep": "h_default"},
+                                                   empty_start=empty)}
+    with pytest.raises(PlanError, match=message):
+        Plan(config(sweeps))
+
+
+def test_a_point_chained_by_warm_start_from_next_starts_from_its_neighbour_even_if_started_empty():
+    sweeps = {"h_default": single(),
+              "h_vs": curve([1.5, 2.0], warm_start={"sweep": "h_default"},
+                            warm_start_from_next={"gas.superficial_velocity": [1.5]},
+                            empty_start={"gas.superficial_velocity": [1.5, 2.0]})}
+    plan = Plan(config(sweeps))
+    assert plan.warm_source == {("h_vs", "gas.superficial_velocity~1.5"): ("h_vs", "gas.superficial_velocity~2")}
+
+
 def test_warm_start_from_a_warm_started_sweep_is_refused():
     sweeps = {"h_default": single(), "a": curve([2.0], warm_start={"sweep": "h_default"}),
               "b": curve([3.0], warm_start={"sweep": "a"})}

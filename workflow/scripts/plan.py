@@ -110,6 +110,7 @@ def check_case_keys(sweep: str, spec: Mapping) -> None:
     for target, source in (spec.get("same_as") or {}).items():
         named += [("same_as", target), (f"same_as.{target}", source)]
     named += [("warm_start_from_next", k) for k in spec.get("warm_start_from_next") or {}]
+    named += [("empty_start", k) for k in spec.get("empty_start") or {}]
     for entry, key in named:
         if key not in KEYS:
             raise PlanError(f"config: sweep {sweep!r}: {entry}: unknown case key {key!r}"
@@ -205,17 +206,22 @@ def consumer_needs(points: Mapping, figures: Mapping, statements: list[dict]) ->
 
 def warm_sources(sweeps: Mapping, points: Mapping) -> dict[Key, Key]:
     """(sweep, point) -> (sweep, point) of the case whose final grains it starts from: a sweep's
-    `warm_start` case for its points (that case itself runs from an empty tube), or, for the points
-    of `warm_start_from_next`, their neighbour in the same sweep."""
+    `warm_start` case for its points (that case itself runs from an empty tube, and so do the
+    points of `empty_start`), or, for the points of `warm_start_from_next` (whether or not in
+    `empty_start`), their neighbour in the same sweep."""
     sources = {}
     for sweep, spec in sweeps.items():
+        try:
+            empty = sw.empty_start_points(sweep, spec, points[sweep])
+        except sw.SweepError as err:
+            raise PlanError(f"config: {err}") from None
         if spec.get("warm_start"):
             src = resolve_ref(points, spec["warm_start"], f"sweep {sweep} warm_start")
             if src[0] != sweep and sweeps[src[0]].get("warm_start"):
                 raise PlanError(f"config: sweep {sweep!r} warm-starts from sweep {src[0]!r}, which is "
                                 "warm-started itself; start from a case that runs from an empty tube")
             for point in points[sweep]:
-                if (sweep, point) != src:
+                if (sweep, point) != src and point not in empty:
                     sources[(sweep, point)] = src
         try:
             chained = sw.next_point_sources(sweep, spec, points[sweep])

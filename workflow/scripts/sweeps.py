@@ -167,6 +167,25 @@ def next_point_sources(sweep: str, spec: Mapping[str, Any],
     return sources
 
 
+def empty_start_points(sweep: str, spec: Mapping[str, Any],
+                       points: Mapping[str, Mapping[str, Any]]) -> set[str]:
+    """Points of `empty_start` ({parameter: [values]}): those with one of the values run from an
+    empty tube whatever `warm_start` says. Raises SweepError naming the key and the values."""
+    parameters = spec.get("parameters") or {}
+    chosen: set[str] = set()
+    for name, values in (spec.get("empty_start") or {}).items():
+        if name not in parameters:
+            raise SweepError(f"sweep {sweep!r}: empty_start: {name!r} is not one of its "
+                             f"parameters{did_you_mean(name, parameters)}: {list(parameters)}")
+        levels = [level[name] for level in _levels(name, parameters[name], sweep)]
+        for value in values:
+            if not any(_equal(level, value) for level in levels):
+                raise SweepError(f"sweep {sweep!r}: empty_start: {name} = {value!r} must be one of "
+                                 f"its values, {levels}")
+            chosen |= {point for point, overrides in points.items() if _equal(overrides[name], value)}
+    return chosen
+
+
 def derived_overrides(needs: set[str]) -> dict[str, Any]:
     """Outputs a case needs from its consumers: snapshots only for snapshot figures; stop when
     steady when every consumer uses only the steady mean."""
