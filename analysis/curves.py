@@ -135,13 +135,17 @@ def regime(dense_fraction: float, slug_rate: float, travel_speed: float = float(
     return "dilute" if vertical else "sliding layer"
 
 
+def _mid_tube(slugs: pd.DataFrame, tube_length: float, t_start: float | None) -> pd.Series:
+    """Rows at t >= t_start (all without) whose slug centre lies in the middle half of the tube."""
+    t0 = -np.inf if t_start is None else t_start
+    return (slugs["time"] >= t0) & (np.abs(slugs["x_center"] - tube_length / 2) <= tube_length / 4)
+
+
 def travel_speed(slugs: pd.DataFrame, tube_length: float, t_start: float | None = None) -> float:
     """Median travel speed (m/s, slug_velocity) over the frames at t >= t_start in which a slug's
     centre lies in the middle half of the tube, away from the inlet's and outlet's boundary
     regions (H §5: 0.05 m); NaN without such frames."""
-    t0 = -np.inf if t_start is None else t_start
-    mid = (slugs["time"] >= t0) & (np.abs(slugs["x_center"] - tube_length / 2) <= tube_length / 4)
-    v = slugs.loc[mid, "slug_velocity"].to_numpy(dtype=np.float64)
+    v = slugs.loc[_mid_tube(slugs, tube_length, t_start), "slug_velocity"].to_numpy(dtype=np.float64)
     v = v[np.isfinite(v)]
     return float(np.median(v)) if v.size else float("nan")
 
@@ -150,9 +154,7 @@ def travel_speed_sem(slugs: pd.DataFrame, tube_length: float, t_start: float | N
     """Standard error (m/s) of travel_speed: the slugs are the independent samples (the frames of
     one slug are not), so each slug seen mid-tube gives its median speed, and the error of the
     median is sqrt(pi/2) times that of a mean over those slugs; NaN with fewer than two slugs."""
-    t0 = -np.inf if t_start is None else t_start
-    mid = (slugs["time"] >= t0) & (np.abs(slugs["x_center"] - tube_length / 2) <= tube_length / 4)
-    seen = slugs.loc[mid & np.isfinite(slugs["slug_velocity"])]
+    seen = slugs.loc[_mid_tube(slugs, tube_length, t_start) & np.isfinite(slugs["slug_velocity"])]
     per_slug = seen.groupby("slug_id")["slug_velocity"].median().to_numpy(dtype=np.float64)
     if per_slug.size < 2:
         return float("nan")
