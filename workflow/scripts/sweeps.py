@@ -143,6 +143,15 @@ def find_point(sweep: str, points: Mapping[str, Mapping[str, Any]], where: Mappi
                      f"{list(points)}")
 
 
+def _named_levels(sweep: str, entry: str, name: str, parameters: Mapping[str, Any]) -> list[Any]:
+    """The values of parameter `name` that a sweep entry (warm_start_from_next, empty_start) names;
+    SweepError if it is not one of the sweep's parameters."""
+    if name not in parameters:
+        raise SweepError(f"sweep {sweep!r}: {entry}: {name!r} is not one of its "
+                         f"parameters{did_you_mean(name, parameters)}: {list(parameters)}")
+    return [level[name] for level in _levels(name, parameters[name], sweep)]
+
+
 def next_point_sources(sweep: str, spec: Mapping[str, Any],
                        points: Mapping[str, Mapping[str, Any]]) -> dict[str, str]:
     """Warm-start sources of `warm_start_from_next`: point -> the point with the next value of the
@@ -150,10 +159,7 @@ def next_point_sources(sweep: str, spec: Mapping[str, Any],
     parameters = spec.get("parameters") or {}
     sources: dict[str, str] = {}
     for name, values in (spec.get("warm_start_from_next") or {}).items():
-        if name not in parameters:
-            raise SweepError(f"sweep {sweep!r}: warm_start_from_next: {name!r} is not one of its "
-                             f"parameters{did_you_mean(name, parameters)}: {list(parameters)}")
-        levels = [level[name] for level in _levels(name, parameters[name], sweep)]
+        levels = _named_levels(sweep, "warm_start_from_next", name, parameters)
         for value in values:
             index = next((i for i, level in enumerate(levels) if _equal(level, value)), None)
             if index is None or index == len(levels) - 1:
@@ -174,10 +180,7 @@ def empty_start_points(sweep: str, spec: Mapping[str, Any],
     parameters = spec.get("parameters") or {}
     chosen: set[str] = set()
     for name, values in (spec.get("empty_start") or {}).items():
-        if name not in parameters:
-            raise SweepError(f"sweep {sweep!r}: empty_start: {name!r} is not one of its "
-                             f"parameters{did_you_mean(name, parameters)}: {list(parameters)}")
-        levels = [level[name] for level in _levels(name, parameters[name], sweep)]
+        levels = _named_levels(sweep, "empty_start", name, parameters)
         for value in values:
             if not any(_equal(level, value) for level in levels):
                 raise SweepError(f"sweep {sweep!r}: empty_start: {name} = {value!r} must be one of "
