@@ -199,6 +199,102 @@ def test_warm_start_from_next_without_a_next_value_is_refused():
         Plan(config(sweeps))
 
 
+# ---- scheduling: expected costs and priorities ---------------------------------------------------
+
+def cost_file(tmp_path, rows, header="rule,job,wall_s,max_rss_mb,cpu_s"):
+    path = tmp_path / "timings.csv"
+    path.write_text("\n".join([header, *rows]) + "\n")
+    return path
+
+
+def chained_sweeps():
+    """h_default; h_vs warm-started from it: 0.5 from 1.5 from 2.0 from h_default (a chain of
+    three levels), and 3.0 from h_default."""
+    return {"h_default": single(),
+            "h_vs": curve([0.5, 1.5, 2.0, 3.0], warm_start={"sweep": "h_default"},
+                          warm_start_from_next={"gas.superficial_velocity": [0.5, 1.5]})}
+
+
+def test_a_case_listed_in_the_cost_file_is_expected_to_take_its_cpu_seconds(tmp_path):
+    path = cost_file(tmp_path, ["simulate,h_default/base,130.0,270.0,120.5",
+                                "detect,h_default/base,1.0,150.0,0.5",   # another rule: ignored
+                                "simulate,(total),130.0,270.0,120.5"])
+    sweeps = {"h_default": single(), "h_vs": curve([1.0, 2.0], overrides={"run.duration": 4.0})}
+    plan = Plan(config(sweeps, scheduling={"job_costs": path.name}), root=tmp_path)
+    assert plan.job_costs == {"h_default/base": 120.5}
+    assert plan.expected_cpu_seconds("h_default", "base") == 120.5
+    # the same case as h_default (1 m/s is the base case's value): its canonical case's cost
+    assert plan.expected_cpu_seconds("h_vs", "gas.superficial_velocity~1") == 120.5
+
+
+def test_a_case_not_in_the_cost_file_is_expected_to_take_the_models_time(tmp_path):
+    path = cost_file(tmp_path, ["simulate,h_default/base,130.0,270.0,120.5"])
+    # 4 s on a tube twice the papers' (1.05 m) at twice their mass flow: 4 x 3000 grains,
+    # 1 min per simulated second each -> 4 x 4 = 16 min
+    sweeps = {"h_default": single(),
+              "h_long": single(**{"tube.length": 1.05, "feed.mass_flow_kg_h": 4.98})}
+    for scheduling in ({"job_costs": str(path)}, {"job_costs": None}, None):
+        extra = {} if scheduling is None else {"scheduling": scheduling}
+        plan = Plan(config(sweeps, **extra))
+        assert plan.expected_cpu_seconds("h_long", "base") == pytest.approx(960.0)
+        assert plan.runtime_minutes("h_long", "base") == 42            # 10 + 2 x 16: the same model
+        assert plan.runtime_minutes("h_long", "base", attempt=2) == 74
+    assert plan.expected_cpu_seconds("h_default", "base") == pytest.approx(240.0)  # no cost file
+
+
+def test_a_warm_start_source_comes_before_the_cases_it_starts_by_its_own_cost(tmp_path):
+    point = "gas.superficial_velocity~{}".format
+    costs = {("h_default", "base"): 100.0, ("h_vs", point("0.5")): 40.0,
+             ("h_vs", point("1.5")): 30.0, ("h_vs", point("2")): 20.0, ("h_vs", point("3")): 80.0}
+    path = cost_file(tmp_path, [f"simulate,{s}/{p},1.0,1.0,{c}" for (s, p), c in costs.items()])
+    plan = Plan(config(chained_sweeps(), scheduling={"job_costs": str(path)}))
+    # below h_default the critical paths 2.0 -> 1.5 -> 0.5 (20 + 30 + 40) and 3.0 alone (80)
+    assert plan.priority("h_vs", point("0.5")) == 40
+    assert plan.priority("h_vs", point("1.5")) == 70
+    assert plan.priority("h_vs", point("2")) == 90
+    assert plan.priority("h_vs", point("3")) == 80
+    assert plan.priority("h_default", "base") == 190
+    started = [k for k, source in plan.warm_source.items() if source == ("h_default", "base")]
+    assert sorted(started) == [("h_vs", point("2")), ("h_vs", point("3"))]
+    assert all(plan.priority("h_default", "base") - plan.priority(*k) >= 100 for k in started)
+
+
+def test_identical_points_share_the_priority_of_their_case(tmp_path):
+    path = cost_file(tmp_path, ["simulate,h_default/base,1.0,1.0,50",
+                                "simulate,h_vs/gas.superficial_velocity~2,1.0,1.0,70"])
+    sweeps = {"h_default": single(), "h_vs": curve([1.0, 2.0], overrides={"run.duration": 4.0})}
+    plan = Plan(config(sweeps, scheduling={"job_costs": str(path)}))
+    assert plan.priority("h_vs", "gas.superficial_velocity~1") == 50  # h_default's case
+    assert plan.priority("h_default", "base") == 50
+    assert plan.priority("h_vs", "gas.superficial_velocity~2") == 70
+
+
+@pytest.mark.parametrize("rows, header, message", [
+    (None, None, r"scheduling.job_costs: .*nope.csv: cannot read it"),
+    (["simulate,h_default/base,1.0"], "rule,job,wall_s",
+     r"scheduling.job_costs: .*timings.csv: no column cpu_s"),
+    (["h_default/base,1.0"], "name,cpu_s", r"scheduling.job_costs: .*timings.csv: no column rule, job"),
+    (["simulate,h_default/base,slow"], "rule,job,cpu_s",
+     r"scheduling.job_costs: .*timings.csv: job h_default/base: cpu_s 'slow' is not a number"),
+])
+def test_a_cost_file_that_cannot_be_read_is_refused_naming_the_key_and_path(tmp_path, rows, header,
+                                                                           message):
+    path = tmp_path / "nope.csv" if rows is None else cost_file(tmp_path, rows, header)
+    with pytest.raises(PlanError, match=message):
+        Plan(config({"h_default": single()}, scheduling={"job_costs": str(path)}))
+
+
+def test_the_paper_configuration_reads_the_paper_runs_costs_and_ci_the_models():
+    import yaml
+
+    paper = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+    costs = paths.read_job_costs(paper["scheduling"]["job_costs"], ROOT)
+    assert {"h_default/base", "v_default/base"} <= set(costs) and "(total)" not in costs
+    # the CI cases bear some of the paper's names with other parameters: the model for all
+    ci = yaml.safe_load((ROOT / "config/ci.yaml").read_text())
+    assert ci["scheduling"] == {"job_costs": None}
+
+
 # ---- errors --------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("figure, message", [

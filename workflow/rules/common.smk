@@ -20,7 +20,9 @@ wildcard_constraints:
 
 _statements_path = (config.get("validation") or {}).get("statements")
 try:
-    PLAN = Plan(config, load_yaml(_statements_path) if _statements_path else [], _statements_path)
+    # the cost file (scheduling.job_costs) is the repository's, next to the Snakefile, not the cwd's
+    PLAN = Plan(config, load_yaml(_statements_path) if _statements_path else [], _statements_path,
+                root=workflow.basedir)
 except (PlanError, ConfigError) as err:
     refuse(err)  # one line, before any job
 
@@ -55,6 +57,11 @@ def simulate_inputs(wildcards):
 
 def runtime_minutes(wildcards, attempt=1):
     return PLAN.runtime_minutes(*wc_key(wildcards), attempt)
+
+
+def simulate_priority(wildcards):
+    """Longest critical path first (Plan.priority: CPU seconds of the case and its warm starts)."""
+    return PLAN.priority(*wc_key(wildcards))
 
 
 def figure_inputs(wildcards):

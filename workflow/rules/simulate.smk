@@ -16,6 +16,7 @@ rule simulate:
     benchmark:
         "results/benchmarks/jobs/simulate/{sweep}/{point}.tsv"
     threads: 1
+    priority: simulate_priority  # longest critical path first (docs/workflow.md)
     resources:
         runtime=runtime_minutes,
         mem_mb=2000,

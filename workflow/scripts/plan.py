@@ -10,6 +10,7 @@ path functions; with wildcard strings they give the rules' output patterns, e.g.
 
 from __future__ import annotations
 
+import csv
 import hashlib
 from collections import defaultdict
 from pathlib import Path
@@ -232,6 +233,37 @@ def warm_sources(sweeps: Mapping, points: Mapping) -> dict[Key, Key]:
     return sources
 
 
+def read_job_costs(path: str | None, root: str | Path | None = None) -> dict[str, float]:
+    """The cost file of `scheduling.job_costs` (a job timing table: columns rule, job, cpu_s, as
+    docs/reference/benchmarks/paper_run_timings.csv), a relative path taken from `root` (the
+    workflow's folder; None: the working directory): "<sweep>/<point>" -> cpu_s of its simulate
+    job; {} without a cost file."""
+    if path is None:
+        return {}
+    path = Path(root or ".") / path
+    entry = f"config: scheduling.job_costs: {path}"
+    try:
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            columns, rows = reader.fieldnames or [], list(reader)
+    except OSError as err:
+        raise PlanError(f"{entry}: cannot read it ({err.strerror or err})") from None
+    except (UnicodeDecodeError, csv.Error) as err:
+        raise PlanError(f"{entry}: not a CSV table ({err})") from None
+    if missing := [c for c in ("rule", "job", "cpu_s") if c not in columns]:
+        raise PlanError(f"{entry}: no column {', '.join(missing)} (a job timing table with columns "
+                        "rule, job, cpu_s, e.g. docs/reference/benchmarks/paper_run_timings.csv)")
+    costs = {}
+    for row in rows:
+        if row["rule"] == "simulate" and row["job"] != "(total)":
+            try:
+                costs[row["job"]] = float(row["cpu_s"])
+            except (TypeError, ValueError):
+                raise PlanError(f"{entry}: job {row['job']}: cpu_s {row['cpu_s']!r} is not a "
+                                "number") from None
+    return costs
+
+
 def explicit_overrides(config: Mapping, sweep: str, point: str, point_values: Mapping) -> dict[str, Any]:
     """The overrides a config sets for a case, without the derived keys it leaves to the plan."""
     spec = config["sweeps"][sweep]
@@ -261,7 +293,7 @@ class Plan:
     """Everything the rules need to know about the cases, figures and statements of a config."""
 
     def __init__(self, config: Mapping, statements: list[dict] | None = None,
-                 statements_source: str = "validation.statements"):
+                 statements_source: str = "validation.statements", root: str | Path | None = None):
         self.config = config
         self.sweeps = dict(config.get("sweeps") or {})
         self.points = expand_sweeps(self.sweeps)
@@ -285,6 +317,7 @@ class Plan:
         self._check_work_precision()
         self.identification = dict(config.get("identification") or {})
         self._check_identification(statements_source)
+        self._scheduling(root)
 
     # -- cases --
 
@@ -336,12 +369,48 @@ class Plan:
             inputs["initial_state"] = self.case_nc(*self.warm_source[key])
         return inputs
 
-    def runtime_minutes(self, sweep: str, point: str, attempt: int = 1) -> int:
-        """Rough wall-time request for a simulate job (SLURM --time): about 1 min per simulated
-        second for 3000 grains on one core, scaled with tube length and mass flow, times 2 for safety."""
+    def model_minutes(self, sweep: str, point: str) -> float:
+        """The cost model of a simulate job: about 1 min of one core per simulated second for 3000
+        grains, scaled with tube length and mass flow (an upper bound: a case that stops when
+        steady runs shorter)."""
         case = self.cases[self.key(sweep, point)]
         grains = max(1.0, case["feed.mass_flow_kg_h"] / 2.49) * case["tube.length"] / 0.525
-        return int(10 + 2 * attempt * case["run.duration"] * grains)
+        return case["run.duration"] * grains
+
+    def runtime_minutes(self, sweep: str, point: str, attempt: int = 1) -> int:
+        """Rough wall-time request for a simulate job (SLURM --time): 10 min plus the cost model
+        times 2 for safety, times the attempt (more on each retry)."""
+        return int(10 + 2 * attempt * self.model_minutes(sweep, point))
+
+    def expected_cpu_seconds(self, sweep: str, point: str) -> float:
+        """CPU seconds a simulate job is expected to take: its `cpu_s` in the cost file
+        (`scheduling.job_costs`) when that lists the case (under the name of the case run once for
+        identical points), else the cost model (model_minutes)."""
+        canonical = self.canonical[self.key(sweep, point)]
+        cost = self.job_costs.get("{}/{}".format(*canonical))
+        return cost if cost is not None else 60.0 * self.model_minutes(*canonical)
+
+    def priority(self, sweep: str, point: str) -> int:
+        """Scheduling priority of a simulate job: the length of its critical path in CPU seconds,
+        its expected cost plus the largest priority of the cases warm-started from it. Snakemake
+        starts the ready jobs of the highest priority first (list scheduling by level), so the
+        longest chains do not end the run on one core."""
+        canonical = self.canonical[self.key(sweep, point)]
+        if canonical not in self._priority:
+            after = max((self.priority(*case) for case in self._warm_started[canonical]), default=0)
+            self._priority[canonical] = round(self.expected_cpu_seconds(*canonical)) + after
+        return self._priority[canonical]
+
+    def _scheduling(self, root: str | Path | None) -> None:
+        """The cost file's simulate costs (job -> cpu_s; a relative path from `root`) and, per case
+        run, the cases run once that start from its final grains."""
+        self._priority: dict[Key, int] = {}
+        self._warm_started: dict[Key, set[Key]] = defaultdict(set)
+        for key, source in self.warm_source.items():
+            if self.canonical[key] != self.canonical[source]:
+                self._warm_started[self.canonical[source]].add(self.canonical[key])
+        path = (self.config.get("scheduling") or {}).get("job_costs")
+        self.job_costs = read_job_costs(path, root)
 
     def curve_sweeps(self) -> list[str]:
         """Sweeps with parameters: each has a curve table and plot."""
