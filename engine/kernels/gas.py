@@ -40,6 +40,29 @@ def _axis_weights(s, n):
     return i0, i0 + 1, sc - i0
 
 
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def _grain_tent(pos, p, g, nx, ny, nz):
+    """Tent weights (eq. 7) of grain p on its 8 surrounding nodes: (i0, i1, wx, k0, k1, wy, m0,
+    m1, wz) per axis as _axis_weights gives them (corner a: _corner)."""
+    r = g.tube_radius
+    i0, i1, wx = _axis_weights(pos[p, 0] * (1.0 / g.hx) - 0.5, nx)
+    k0, k1, wy = _axis_weights((pos[p, 1] + r) * (1.0 / g.hy) - 0.5, ny)
+    m0, m1, wz = _axis_weights((pos[p, 2] + r) * (1.0 / g.hz) - 0.5, nz)
+    return i0, i1, wx, k0, k1, wy, m0, m1, wz
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def _corner(a, tent, scale):
+    """Node (i, k, m) and scale times the tent weight of corner a (0..7: bits x, y, z) of a grain's
+    cell, from its _grain_tent (scale first: the deposit's V_p w keeps its order of products)."""
+    i0, i1, wx, k0, k1, wy, m0, m1, wz = tent
+    i = i1 if a & 4 else i0
+    k = k1 if a & 2 else k0
+    m = m1 if a & 1 else m0
+    w = scale * (wx if a & 4 else 1.0 - wx) * (wy if a & 2 else 1.0 - wy) * (wz if a & 1 else 1.0 - wz)
+    return i, k, m, w
+
+
 @nb.njit(cache=True, fastmath=FASTMATH)
 def deposit(pos, vel, n, g, dep):
     """Tent-deposit grain volume and volume-weighted velocity onto the nodes (eq. 8).
@@ -53,26 +76,16 @@ def deposit(pos, vel, n, g, dep):
     dep[:] = 0.0
     vp = g.grain_volume
     length = g.tube_length
-    r = g.tube_radius
-    ihx = 1.0 / g.hx
-    ihy = 1.0 / g.hy
-    ihz = 1.0 / g.hz
     for p in range(n):
         x = pos[p, 0]
         if not (x >= 0.0 and x <= length):
             continue
-        i0, i1, wx = _axis_weights(x * ihx - 0.5, nx)
-        k0, k1, wy = _axis_weights((pos[p, 1] + r) * ihy - 0.5, ny)
-        m0, m1, wz = _axis_weights((pos[p, 2] + r) * ihz - 0.5, nz)
+        tent = _grain_tent(pos, p, g, nx, ny, nz)
         vx = vel[p, 0]
         vy = vel[p, 1]
         vz = vel[p, 2]
         for a in range(8):
-            i = i1 if a & 4 else i0
-            k = k1 if a & 2 else k0
-            m = m1 if a & 1 else m0
-            w = vp * (wx if a & 4 else 1.0 - wx) * (wy if a & 2 else 1.0 - wy) * (
-                wz if a & 1 else 1.0 - wz)
+            i, k, m, w = _corner(a, tent, vp)
             dep[i, k, m, 0] += w
             dep[i, k, m, 1] += w * vx
             dep[i, k, m, 2] += w * vy
@@ -520,29 +533,19 @@ def drag_forces(pos, n, nodal, g, force, accumulate):
     nx, ny, nz, _ = nodal.shape
     vp = g.grain_volume
     length = g.tube_length
-    r = g.tube_radius
-    ihx = 1.0 / g.hx
-    ihy = 1.0 / g.hy
-    ihz = 1.0 / g.hz
     for p in range(n):
         x = pos[p, 0]
         fx = 0.0
         fy = 0.0
         fz = 0.0
         if x >= 0.0 and x <= length:
-            i0, i1, wx = _axis_weights(x * ihx - 0.5, nx)
-            k0, k1, wy = _axis_weights((pos[p, 1] + r) * ihy - 0.5, ny)
-            m0, m1, wz = _axis_weights((pos[p, 2] + r) * ihz - 0.5, nz)
+            tent = _grain_tent(pos, p, g, nx, ny, nz)
             ph = 0.0
             gx = 0.0
             gy = 0.0
             gz = 0.0
             for a in range(8):
-                i = i1 if a & 4 else i0
-                k = k1 if a & 2 else k0
-                m = m1 if a & 1 else m0
-                w = (wx if a & 4 else 1.0 - wx) * (wy if a & 2 else 1.0 - wy) * (
-                    wz if a & 1 else 1.0 - wz)
+                i, k, m, w = _corner(a, tent, 1.0)
                 ph += w * nodal[i, k, m, 0]
                 gx += w * nodal[i, k, m, 1]
                 gy += w * nodal[i, k, m, 2]
