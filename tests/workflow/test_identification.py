@@ -122,3 +122,24 @@ def test_each_reading_has_its_effect_against_the_baseline_reading():
     assert df.loc["face_permeability=harmonic", "effect_error"] == pytest.approx(0.5 * 2 ** 0.5)
     assert df.loc["baseline", "effect"] == 0.0
     assert "-14 +- 0.71" in identification.markdown(df.reset_index())
+
+
+def test_summary_compares_each_reading_with_the_baseline_on_the_same_statements():
+    statements = STATEMENTS + [{"id": "DP2", "statement": "dp", "measure": "pressure_drop", "value": 42,
+                                "unit": "hPa/m", "tolerance": 0.5}]
+    # harmonic 33 against the arithmetic baseline's 47 hPa/m on sweep s; 47.5 against 47 on sweep t
+    tables = {"s": readings_table([3300.0, 4700.0], ["plug", "plug"]),
+              "t": readings_table([4750.0, 4700.0], ["plug", "plug"])}
+    baselines = {k: {"gas.face_permeability": "arithmetic", "gas.scheme": "unsplit"} for k in tables}
+    compare = [{"statement": "DP", "sweep": "s"}, {"statement": "DP2", "sweep": "s"},
+               {"statement": "DP", "sweep": "t"}, {"statement": "REG", "sweep": "s"}]
+    df = identification.table(statements, tables, compare, READINGS, baselines)
+    # DP (31.2-46.8 hPa/m) on s: 33 lies inside (miss 0), 47 misses by 0.2 -> closer, both within
+    # (47 - 2 x 0.5 reaches 46.8); DP2 (41.5-42.5): 33 misses by 8.5, 47 by 4.5 -> farther;
+    # DP on t: +0.5 +- 0.71 hPa/m is not resolved, counted neither way; REG: plug in both
+    s = identification.summary(df).set_index("reading")
+    assert s.loc["face_permeability=harmonic", ["within", "of", "baseline_within", "closer", "farther"]].tolist() \
+        == [3, 4, 3, 1, 1]
+    assert df.set_index(["id", "sweep", "reading"]).loc[("DP2", "s", "baseline"), "miss"] == pytest.approx(4.5 / 42)
+    assert "| face_permeability=harmonic | 3 | 4 | 3 | 1 | 1 |" in identification.markdown(df)
+    assert "| baseline | 3 | 4 | | | |" in identification.markdown(df)
