@@ -143,3 +143,17 @@ def test_summary_compares_each_reading_with_the_baseline_on_the_same_statements(
     assert df.set_index(["id", "sweep", "reading"]).loc[("DP2", "s", "baseline"), "miss"] == pytest.approx(4.5 / 42)
     assert "| face_permeability=harmonic | 3 | 4 | 3 | 1 | 1 |" in identification.markdown(df)
     assert "| baseline | 3 | 4 | | | |" in identification.markdown(df)
+
+
+def test_an_effect_without_an_error_is_resolved_only_for_an_argmax():
+    friction = [0.1, 0.3]
+    table = readings_table([[900.0, 700.0], [700.0, 900.0]], ["slug", "slug"], friction)
+    table["pressure_drop_sem"] = float("nan")  # a mean whose error the estimator could not give
+    baselines = {"f": {"gas.face_permeability": "arithmetic", "gas.scheme": "unsplit"}}
+    compare = [{"statement": "PEAK", "sweep": "f"},
+               {"statement": "DP", "sweep": "f", "where": {"particles.friction": 0.1}}]
+    df = identification.table(STATEMENTS, {"f": table}, compare, READINGS, baselines)
+    # the peak moves from 0.3 (baseline, 0.15 beyond 0.05-0.15) to 0.1 (inside): closer, resolved;
+    # 9 against 7 hPa/m without errors: nearer 31.2-46.8, but the change is not resolved
+    s = identification.summary(df).set_index("reading")
+    assert s.loc["face_permeability=harmonic", ["closer", "farther"]].tolist() == [1, 0]

@@ -153,16 +153,21 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
             b = base.loc[list(zip(shared["id"], shared["sweep"]))]
             row["baseline_within"] = int((b["within"] == "yes").sum())
             resolved = [(r.miss, m) for r, m in zip(shared.itertuples(), b["miss"])
-                        if math.isfinite(r.effect) and math.isfinite(r.miss)
-                        and math.isfinite(m) and abs(r.effect) > 2 * _finite(r.effect_error)]
+                        if math.isfinite(r.miss) and math.isfinite(m) and _resolved(r)]
             row["closer"] = sum(1 for mine, theirs in resolved if mine < theirs)
             row["farther"] = sum(1 for mine, theirs in resolved if mine > theirs)
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def _finite(x: float) -> float:
-    return x if math.isfinite(x) else 0.0
+def _resolved(r) -> bool:
+    """An effect beyond 2 combined standard errors; without an error only an argmax (a grid value,
+    exact) is resolved, a mean whose error is unknown is not."""
+    if not math.isfinite(r.effect) or r.effect == 0.0:
+        return False
+    if math.isfinite(r.effect_error):
+        return abs(r.effect) > 2 * r.effect_error
+    return r.measure == "argmax"
 
 
 def markdown(df: pd.DataFrame) -> str:
