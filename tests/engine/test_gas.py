@@ -269,7 +269,8 @@ def test_time_convergence_order(theta, order, transverse):
 @pytest.mark.parametrize("nodes", [(150, 2, 2), (40, 1, 1), (30, 3, 4)])
 def test_darcy_gradient_in_a_fixed_bed(outlet, vs, nodes):
     """Eq. (3) with u = 0: grad P = -eta v_s / kappa(phi) and a drop eta v_s L / kappa."""
-    f = field(superficial_velocity=vs, outlet=outlet, nodes=nodes)
+    # unsplit: its fixed point is eq. (5)'s steady state to round-off (the split's leaves 5e-8 across)
+    f = field(superficial_velocity=vs, outlet=outlet, nodes=nodes, scheme="unsplit")
     f.set_solid_fraction(0.6)
     kappa = carman_kozeny(0.4)
     for _ in range(40):  # backward Euler with dt = 1 s: error shrinks by 1/(1 + rate dt) < 0.02
@@ -291,7 +292,8 @@ def test_plug_resistance_of_each_face_rule(face, cells_of_resistance):
     plug's resistive length. Harmonic faces make each end face half a plug cell (l = 10 hx, the
     plug's true length); arithmetic faces let the empty node's kappa short-circuit both half
     cells (l = 9 hx)."""
-    f = field(nodes=(150, 2, 2), face_permeability=face)
+    # unsplit: its fixed point is eq. (5)'s steady state (the split's is 1.4e-5 off at dt = 1 s)
+    f = field(nodes=(150, 2, 2), face_permeability=face, scheme="unsplit")
     sf = np.zeros(f.nodes)
     sf[60:70] = 0.6
     f.set_solid_fraction(sf)
@@ -343,7 +345,8 @@ def test_darcy_gradient_in_a_moving_bed_with_feed():
 def test_empty_tube_carries_no_pressure_drop():
     """The papers' gas has no wall shear: an empty tube reads kappa(phi_max) and a drop of
     eta v_s L / kappa(phi_max), 7e3 times below Hagen-Poiseuille's 32 eta v_s L / D^2."""
-    f = gas.GasField()
+    # unsplit: its fixed point is eq. (5)'s steady state (the split's is 1.1e-5 off at dt = 1 s)
+    f = field(scheme="unsplit")
     for _ in range(40):
         f.step(1.0)
     assert np.all(f.kappa == pytest.approx(KAPPA_EMPTY, rel=1e-12))
@@ -366,7 +369,8 @@ def random_bed(f, rng, stratified=False):
 @pytest.mark.parametrize("theta", [1.0, 0.5])
 def test_step_equals_a_direct_sparse_solve(nodes, theta):
     rng = np.random.default_rng(3)
-    f = field(nodes=nodes, theta=theta)
+    # unsplit: the reference is the theta step of the whole 3-D operator, which only it solves
+    f = field(nodes=nodes, theta=theta, scheme="unsplit")
     random_bed(f, rng)
     f.deposit(uniform_points(500, rng), rng.normal(size=(500, 3)))  # non-zero div u source
     p_old = rng.normal(size=nodes) * 10
@@ -387,7 +391,8 @@ def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
     """The steady state L P + src = 0 is a fixed point of the unsplit step, not of the papers'
     dimension-split scheme (docs/gas.md)."""
     rng = np.random.default_rng(4)
-    f = gas.GasField()
+    # unsplit as the field's scheme: its fixed point is eq. (5)'s steady state; split=True below
+    f = field(scheme="unsplit")
     random_bed(f, rng, stratified=True)
     op, _ = operator(f)
     steady = spla.spsolve(op, -f.src.ravel()).reshape(f.nodes)
@@ -407,7 +412,9 @@ def test_steady_state_of_a_stratified_bed_is_exact_and_splitting_is_not():
 def test_gas_content_is_conserved_with_balanced_fluxes(theta, face, measured):
     """Both ends at flux v_s A (papers' BC), grains still: sum phi V P' is invariant."""
     rng = np.random.default_rng(5)
-    f = field(outlet="flux", superficial_velocity=2.0, theta=theta, face_permeability=face)
+    # unsplit: the measured drifts are its 3-D solve's (the split's: 1.0e-8 and 2.4e-7 at theta 1)
+    f = field(outlet="flux", superficial_velocity=2.0, theta=theta, face_permeability=face,
+              scheme="unsplit")
     random_bed(f, rng)
     f.pressure[:] = rng.normal(size=f.nodes) * 100
     start = f.gas_content()
@@ -431,7 +438,8 @@ def test_gas_content_is_conserved_with_balanced_fluxes(theta, face, measured):
 def test_gas_budget_with_open_outlet_and_moving_grains():
     """One step changes sum phi V P' by dt (P0 (Q_in - grain outflow) - outlet Darcy flux)."""
     rng = np.random.default_rng(6)
-    f = field(feed_volume_rate=1e-7)
+    # unsplit: the outlet flux below is at the step's final P'; the split drains after its x sweep
+    f = field(feed_volume_rate=1e-7, scheme="unsplit")
     pts = uniform_points(3000, rng)
     f.deposit(pts, rng.normal(size=(3000, 3)) * 0.1)
     area = f.area
@@ -537,13 +545,13 @@ def test_couple_kernel_matches_the_wrapper_sequence(scheme):
 
 # --- stability -----------------------------------------------------------------------------------
 
-def startup(vs, eta, dt, theta, steps=None, bed=None):
+def startup(vs, eta, dt, theta, steps=None, bed=None, **keys):
     """Run from P' = 0 and return the history of P' (steps + 1, nx, ny, nz) and the steady state.
 
     By default as many steps as backward Euler needs to bring the slowest empty-tube mode
-    (rate D (pi / 2L)^2) down by 1e-8.
+    (rate D (pi / 2L)^2) down by 1e-8.  keys: further gas.<key> values.
     """
-    f = field(superficial_velocity=vs, viscosity=eta, theta=theta)
+    f = field(superficial_velocity=vs, viscosity=eta, theta=theta, **keys)
     if bed is not None:
         f.set_solid_fraction(bed)
     op, _ = operator(f)
@@ -570,7 +578,8 @@ def plug_bed():
 @pytest.mark.parametrize("dt", [1e-5, 1e-4, 1e-3])
 def test_default_theta_is_bounded_and_monotone(vs, eta, dt):
     """Empty tube (phi = 1, diffusion numbers up to ~1e6): backward Euler from rest."""
-    hist, steady, f = startup(vs, eta, dt, theta=1.0)
+    # unsplit: bounded by its fixed point to 1e-10 (the split's transverse solves: up to 1.4e-6)
+    hist, steady, f = startup(vs, eta, dt, theta=1.0, scheme="unsplit")
     scale = steady.max()
     tol = 1e-10 * scale  # round-off of the solve
     assert np.all(np.isfinite(hist))
@@ -585,7 +594,8 @@ def test_default_theta_is_bounded_and_monotone(vs, eta, dt):
 
 @pytest.mark.parametrize("dt", [1e-5, 1e-3])
 def test_default_theta_is_monotone_with_a_plug(dt):
-    hist, steady, _ = startup(20.0, 1e-5, dt, theta=1.0, steps=200, bed=plug_bed())
+    # unsplit: eq. (5)'s steady state across a lower-half plug is its fixed point, not the split's
+    hist, steady, _ = startup(20.0, 1e-5, dt, theta=1.0, steps=200, bed=plug_bed(), scheme="unsplit")
     tol = 1e-10 * steady.max()
     assert hist.min() >= -tol and hist.max() <= steady.max() + tol
     assert np.all(np.diff(hist, axis=0) >= -tol)
@@ -616,7 +626,8 @@ def test_pressure_spike_sign_flips_unless_backward_euler(theta, factor):
     step, with the stiff-limit factor -(1 - theta)/theta; backward Euler decays it monotonically."""
     values = {}
     for th in (theta, 1.0):
-        f = field(superficial_velocity=0.0, theta=th)
+        # unsplit: -(1 - theta)/theta is its stiff limit; the split's sweeps spread the spike across
+        f = field(superficial_velocity=0.0, theta=th, scheme="unsplit")
         f.pressure[75, 0, 0] = 100.0
         hist = []
         for _ in range(6):
