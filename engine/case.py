@@ -150,11 +150,12 @@ KEYS: dict[str, Key] = {k.name: k for k in [
         "mean of the two nodes' kappa or their harmonic mean (two half cells in series); the "
         "papers do not say (choice: docs/decisions/0018-gas-discretisation-readings.md).",
         kind=str, choices=("harmonic", "arithmetic")),
-    Key("gas.scheme", "unsplit", "",
-        "Gas time scheme: the theta scheme on the whole 3-D operator (unsplit) or one theta solve "
-        "per dimension in turn (split: the papers' 'each dimension is integrated separately'; its "
-        "steady state is not that of eq. (5) where the porosity varies across the tube, "
-        "docs/gas.md).", kind=str, choices=("unsplit", "split")),
+    Key("gas.scheme", "split", "",
+        "Gas time scheme: one theta solve per dimension in turn (split: the papers' 'each "
+        "dimension is integrated separately') or the theta scheme on the whole 3-D operator "
+        "(unsplit, whose fixed point is the steady state of eq. (5)); where the porosity varies "
+        "across the tube the split's steady state depends on the gas step (docs/gas.md).",
+        kind=str, choices=("unsplit", "split")),
     Key("gas.deposit_volume", "tube", "",
         "Volume that normalises the eq. (8) deposit into a node porosity: the node's share of the "
         "tube (tube) or the whole cubic grid cell hx hy hz (cell: the cells overhang the round "
