@@ -1,4 +1,4 @@
-"""The regime rule on real, small case files (a 10 cm tube, a few simulated seconds): the four
+"""The regime rule on real, small case files (a 10 cm tube, 20 cm for slugs, a few simulated seconds): the four
 regimes such short runs reach, as the papers name them. The analysis package itself never imports
 the engine; this test runs it to make the case files."""
 
@@ -23,8 +23,10 @@ def run(tmp_path, kind, overrides):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind, overrides, expected", [
-    # default horizontal case: slugs form and travel although they hold only ~25 % of the grains
-    ("horizontal", ["run.duration=3"], "slug"),
+    # default horizontal case: slugs form and travel although they hold only ~10 % of the grains.
+    # Measured under the split gas scheme: 10 cm carries a sliding layer (10 s, seeds 0 and 1);
+    # 20 cm forms slugs (4 s: slug at seeds 0 and 1; 3 s is still filling: blocked)
+    ("horizontal", ["tube.length=0.2", "gas.nodes_x=57", "run.duration=4"], "slug"),
     # no friction: grains roll along the bottom, no slug reaches mid-tube (H §4)
     ("horizontal", ["run.duration=3", "particles.friction=0.0"], "sliding layer"),
     ("vertical", ["run.duration=3"], "plug"),
