@@ -444,7 +444,7 @@ def test_ci_workflow_runs_and_writes_every_output(tmp_path):
     table = pd.read_csv(work / "results/identification/identification.csv", comment="#")
     assert table["reading"].nunique() == 3 and len(table) == 3 * 5
     assert "baseline" in set(table["reading"])
-    assert table["reading"].str.contains("scheme=split").any()
+    assert table["reading"].str.contains("scheme=unsplit").any()  # the baseline is split
     assert set(table["within"]) <= {"yes", "no", "no (blocked)", "not available"}
     assert imread(work / "results/identification/identification.png").ndim == 3
     report = snakemake("--report", "report.html", "--configfile", "config/ci.yaml", cwd=work)
