@@ -231,14 +231,16 @@ class Progress:
             self.bar.close()
 
 
-def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str, stop=None) -> None:
+def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: str, cpu_s: float,
+                     stop=None) -> None:
     """Pickle the run to `path` (replaced only when complete; DiskFullError keeps the older one).
-    `stop`: (case, stop_reason, steady window) of a run that has ended but whose file could not be
-    written."""
+    `cpu_s`: CPU seconds of the run so far, all its parts. `stop`: (case, stop_reason, steady
+    window) of a run that has ended but whose file could not be written."""
     tmp = path.with_name(path.name + ".tmp")
     try:
         with open(tmp, "wb") as handle:
-            pickle.dump({"digest": digest, "sim": sim, "recorder": recorder, "stop": stop}, handle, protocol=5)
+            pickle.dump({"digest": digest, "sim": sim, "recorder": recorder, "stop": stop, "cpu_s": cpu_s},
+                        handle, protocol=5)
         os.replace(tmp, path)
     except OSError as err:
         if out_of_space(err, path.parent):
@@ -250,8 +252,9 @@ def _save_checkpoint(path: Path, sim: Simulation, recorder: Recorder, digest: st
 
 
 def _load_checkpoint(path: Path, digest: str, case: Case):
-    """(sim, recorder, stop) of the checkpoint `path` of this case, or None; stop: (stop_reason,
-    steady window) when it holds the end of a run whose file was not written, for the same keys."""
+    """(sim, recorder, stop, cpu_s) of the checkpoint `path` of this case, or None; stop:
+    (stop_reason, steady window) when it holds the end of a run whose file was not written, for the
+    same keys; cpu_s: CPU seconds of the run so far (NaN from a checkpoint that did not count them)."""
     if not path.exists():
         return None
     with open(path, "rb") as handle:
@@ -260,7 +263,8 @@ def _load_checkpoint(path: Path, digest: str, case: Case):
         log.warning("ignoring checkpoint %s: it belongs to a different case configuration", path)
         return None
     stop = state.get("stop")
-    return state["sim"], state["recorder"], (stop[1:] if stop and stop[0] == case else None)
+    return (state["sim"], state["recorder"], (stop[1:] if stop and stop[0] == case else None),
+            state.get("cpu_s", math.nan))
 
 
 def restart_state(sim: Simulation, digest: str) -> xr.Dataset:
@@ -273,8 +277,9 @@ def restart_state(sim: Simulation, digest: str) -> xr.Dataset:
 
 
 def _load_finished(out: Path, case: Case, digest: str, frames: int):
-    """(sim, recorder) at the end of the finished case file `out` when it can be continued to
-    `frames` output frames of `case`: same digest, stopped for lack of time, fewer frames."""
+    """(sim, recorder, None, cpu_s) at the end of the finished case file `out` when it can be
+    continued to `frames` output frames of `case`: same digest, stopped for lack of time, fewer
+    frames; cpu_s: the CPU seconds of the run that wrote it, all its parts."""
     if not out.is_file():
         return None
     try:
@@ -284,7 +289,8 @@ def _load_finished(out: Path, case: Case, digest: str, frames: int):
                     or ds.sizes["time"] - 1 >= frames):
                 return None
             sim = pickle.loads(ds.restart_state.values.tobytes())
-            return sim, Recorder.from_dataset(ds.load(), case, sim), None
+            cpu_s = float(ds.attrs.get("cpu_time_total_s", math.nan))
+            return sim, Recorder.from_dataset(ds.load(), case, sim), None, cpu_s
     except Exception as err:  # unreadable, or a state the code cannot load: run from the start
         log.warning("not continuing %s (%s): running from the start", out, str(err).splitlines()[0])
         return None
@@ -485,10 +491,10 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     stop = None
     try:
         if resumed:
-            sim, recorder, stop = resumed
+            sim, recorder, stop, cpu_before = resumed
             sim.case = recorder.case = case  # differs at most in keys that only extend a run
         else:
-            sim, recorder = Simulation(case, threads), Recorder(case)
+            sim, recorder, cpu_before = Simulation(case, threads), Recorder(case), 0.0
             if start is not None:
                 sim.add_particles(*start)
                 log.info("warm start from %s: %d grains", initial_state, len(start[0]))
@@ -505,6 +511,11 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
     last_save = started = time.monotonic()
     cpu_started = time.process_time()
+
+    def cpu_total() -> float:
+        """CPU seconds of the run, its earlier parts included (NaN if one of them was not counted)."""
+        return cpu_before + time.process_time() - cpu_started
+
     reason, window = stop or ("duration", None)  # stop: the run had ended, its file not written
     previous_overlap = sim.overlap  # at the end of the last frame: the wedge test's build-up
     if case["run.until_steady"] and resumed and not stop:  # a longer run continued: steady already?
@@ -526,10 +537,10 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                 if window:
                     break
             if signals.received is not None:
-                _save_checkpoint(ckpt, sim, recorder, digest)
+                _save_checkpoint(ckpt, sim, recorder, digest, cpu_total())
                 raise RunInterrupted(signals.received, sim.time, ckpt)
             if case["run.checkpoint_interval"] > 0 and time.monotonic() - last_save > case["run.checkpoint_interval"]:
-                _save_checkpoint(ckpt, sim, recorder, digest)
+                _save_checkpoint(ckpt, sim, recorder, digest, cpu_total())
                 saved, last_save = sim.time, time.monotonic()
     except FeedBlocked as err:  # a result, not a failure: the file says so (stop_reason blocked)
         _check_health(sim, previous_overlap=previous_overlap)  # unless the state is broken: a failure
@@ -561,6 +572,9 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
              # CPU time of the same part: the cost measure of the work-precision study (less
              # sensitive than wall time to other jobs sharing the machine)
              "cpu_time_s": time.process_time() - cpu_started,
+             # CPU time of the whole run, its earlier parts (checkpoints, a shorter run continued)
+             # included: what the case cost; NaN when a part was saved without its count
+             "cpu_time_total_s": cpu_total(),
              "threads": sim.threads,
              "initial_state": str(initial_state or ""),
              "initial_particles": 0 if start is None else len(start[0]),
@@ -573,7 +587,7 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                          .merge(restart_state(sim, digest)), out)
     except DiskFullError as err:
         try:  # the end of the run, to write its file from once space is freed
-            _save_checkpoint(ckpt, sim, recorder, digest, stop=(case, reason, window))
+            _save_checkpoint(ckpt, sim, recorder, digest, cpu_total(), stop=(case, reason, window))
             saved = sim.time
         except DiskFullError:
             pass  # the older checkpoint, if any, is still there

@@ -149,12 +149,16 @@ def test_a_finished_run_continues_to_a_longer_duration_bit_for_bit(tmp_path):
     once, continued = tmp_path / "once.nc", tmp_path / "continued.nc"
     run_case(Case.from_yaml(CASE, TINY + snapshots + ["run.duration=0.3"]), once)
     run_case(Case.from_yaml(CASE, TINY + snapshots + ["run.duration=0.15"]), continued)
+    with xr.open_dataset(continued) as short:
+        first_part = short.attrs["cpu_time_total_s"]
     res = plugsim("run", str(CASE), "--out", str(continued), *sets(TINY + snapshots + ["run.duration=0.3"]))
     assert res.returncode == 0, res.stderr
     assert f"continuing {continued} from its end, t = 0.150 s, to 0.3 s" in res.stderr
     with xr.open_dataset(once) as a, xr.open_dataset(continued) as b:
         assert a.attrs["resumed"] == 0 and b.attrs["resumed"] == 1
         assert b.attrs["config_yaml"] == a.attrs["config_yaml"] and b.sizes["time"] == 31
+        # the cost of the whole run: the first part's CPU seconds carried into the continued file
+        assert b.attrs["cpu_time_total_s"] == pytest.approx(first_part + b.attrs["cpu_time_s"], abs=0.05)
         for name in a.data_vars:  # restart_state included: the engine's state at the end
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
     # another configuration is refused (test below); with --overwrite it starts over (not mixed)

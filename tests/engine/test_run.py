@@ -107,6 +107,10 @@ def test_killed_run_leaves_no_file_and_resumes_to_an_identical_result(tmp_path):
     assert not ckpt.exists()
     with xr.open_dataset(reference) as a, xr.open_dataset(out) as b:
         assert a.attrs["resumed"] == 0 and b.attrs["resumed"] == 1 and a.attrs["wall_time_s"] > 0
+        # a run in one part costs what its part did; the resumed one adds the killed part's CPU
+        # seconds, saved with its checkpoint (0.05 s: the two clocks are read apart by a write)
+        assert a.attrs["cpu_time_total_s"] == pytest.approx(a.attrs["cpu_time_s"], abs=0.05)
+        assert b.attrs["cpu_time_total_s"] > b.attrs["cpu_time_s"] + 0.05
         for name in a.data_vars:
             np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
 
