@@ -19,10 +19,11 @@ def _job(jobs, rule, job, wall, cpu):
     path.write_text(BENCH.format(wall=wall, cpu=cpu))
 
 
-def _case(cases, job, total):
+def _case(cases, job, total, resumed=1, part=10.0):
     path = cases / f"{job}.nc"
     path.parent.mkdir(parents=True, exist_ok=True)
     with netCDF4.Dataset(path, "w") as ds:
+        ds.resumed, ds.cpu_time_s = resumed, part
         if total is not None:
             ds.cpu_time_total_s = total
 
@@ -39,10 +40,14 @@ def test_a_resumed_case_counts_all_its_parts_and_a_total_never_drops_an_unknown(
     assert table.loc[("simulate", "(total)"), "case_cpu_s"] == 424.0
     assert table.loc[("simulate", "(total)"), "cpu_s"] == 75.0
     assert math.isnan(table.loc[("detect", "h_default/base"), "case_cpu_s"])
-    # a case file without the count (written by an engine that did not keep it): the total is unknown
+    # a resumed case file without the count (an engine that did not keep it): the total is unknown
     _case(cases, "h_default/base", None)
     table = timings.collect(jobs, tmp_path / "timings.csv", cases).set_index(["rule", "job"])
     assert math.isnan(table.loc[("simulate", "h_default/base"), "case_cpu_s"])
     assert math.isnan(table.loc[("simulate", "(total)"), "case_cpu_s"])
+    # ... unless it ran in one part: then its part is the whole
+    _case(cases, "h_default/base", None, resumed=0, part=380.0)
+    table = timings.collect(jobs, tmp_path / "timings.csv", cases).set_index(["rule", "job"])
+    assert table.loc[("simulate", "(total)"), "case_cpu_s"] == 404.0
     written = pd.read_csv(tmp_path / "timings.csv")
     assert list(written.columns) == ["rule", "job", "wall_s", "max_rss_mb", "cpu_s", "case_cpu_s"]
