@@ -59,6 +59,12 @@ def runtime_minutes(wildcards, attempt=1):
     return PLAN.runtime_minutes(*wc_key(wildcards), attempt)
 
 
+def analysis_position(wildcards):
+    """Axial position (m) where a sweep's cases are analysed: the sweep's `position`, else
+    analysis.position."""
+    return PLAN.sweeps[wildcards.sweep].get("position", config["analysis"]["position"])
+
+
 def simulate_priority(wildcards):
     """Longest critical path first (Plan.priority: CPU seconds of the case and its warm starts)."""
     return PLAN.priority(*wc_key(wildcards))

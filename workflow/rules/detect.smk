@@ -12,7 +12,7 @@ rule detect:
         summary=paths.summary_json("{sweep}", "{point}"),
     params:
         threshold=config["analysis"]["threshold"],
-        position=lambda wc: PLAN.sweeps[wc.sweep].get("position", config["analysis"]["position"]),
+        position=analysis_position,
         sweep=lambda wc: wc.sweep,
         point=lambda wc: wc.point,
         parameters=lambda wc: PLAN.points[wc.sweep][wc.point],

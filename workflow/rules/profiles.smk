@@ -13,7 +13,7 @@ rule profiles:
         profile=paths.profile_nc("{sweep}", "{point}"),
         selection=paths.selection_csv("{sweep}", "{point}"),
     params:
-        position=lambda wc: PLAN.sweeps[wc.sweep].get("position", config["analysis"]["position"]),
+        position=analysis_position,
         length_band=config["analysis"].get("length_band"),
         velocity_band=config["analysis"].get("velocity_band"),
     log:
