@@ -98,6 +98,17 @@ def config(ds: xr.Dataset) -> dict[str, Any]:
     return flatten(nested)
 
 
+def run_cpu_seconds(attrs: Mapping[str, Any]) -> float:
+    """CPU seconds of all the parts of the run that wrote a case file, from its attributes:
+    `cpu_time_total_s`, or for a file without it (an older engine's) `cpu_time_s` when the run was
+    not resumed; NaN when unknown (`cpu_time_s` alone counts the last part only)."""
+    if "cpu_time_total_s" in attrs:
+        return float(attrs["cpu_time_total_s"])
+    if int(attrs.get("resumed", 1)) == 0:
+        return float(attrs.get("cpu_time_s", math.nan))
+    return math.nan
+
+
 def require(ds: xr.Dataset, *names: str) -> None:
     """Raise CaseFileError naming every variable of `names` that the case file lacks, or that
     carries other units than the contract declares (a variable without a units attribute passes)."""

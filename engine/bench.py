@@ -261,16 +261,10 @@ def gas_cost_split(steps: int, repeats: int) -> dict:
 
     def couple_steps():
         for _ in range(steps):
-            gas_kernels.couple(positions, velocities, grains, arrays, dt, 1, 1.0, 0.0, drag, False)
+            gas_kernels.couple(positions, velocities, grains, arrays, dt, 1, gas.theta, 0.0, drag, False)
 
-    def solve_steps():  # the scheme couple runs (gas.scheme)
-        for _ in range(steps):
-            if gas.g.split > 0.5:
-                gas_kernels.gas_step_split(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az,
-                                           gas.g, dt, 1.0, gas.work)
-            else:
-                gas_kernels.gas_step(gas.pressure, gas.phi, gas.kappa, gas.src, gas.area, gas.ay, gas.az, gas.g,
-                                     dt, 1.0, gas.wmat, gas.wvec)
+    def solve_steps():  # the scheme and theta couple runs (gas.scheme, gas.theta)
+        gas.step(steps * dt, steps)
 
     couple = statistics.median(_timed(couple_steps) / steps for _ in range(repeats))
     solve = statistics.median(_timed(solve_steps) / steps for _ in range(repeats))

@@ -23,7 +23,7 @@ analysis.runlength.required_windows then measures each quantity over the case's 
 docstring). Printed per case and quantity, for its strictest statement: ours +- its standard error
 now, the error asked, the window run and the window needed (s after the window's start), when
 the growing window first met it, the run length that needs (start + window) and its CPU time pro
-rata of the file's cpu_time_s (rough: a run from an empty tube costs less per second while it
+rata of the run's CPU seconds (all its parts; rough: a run from an empty tube costs less per second while it
 fills), and how far ours lies outside the statement's interval in standard errors (more precision
 does not change a verdict many errors away). Then the case keys that would stop each case there
 (run.steady_pressure_drop_error, run.steady_n_particles_error; the engine has no slug velocities).
@@ -51,7 +51,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from analysis.casefile import config  # noqa: E402
+from analysis.casefile import config, run_cpu_seconds  # noqa: E402
 from analysis.runlength import PASSAGES, Precision, required_windows  # noqa: E402
 from analysis.slugs import detect  # noqa: E402
 from engine.case import parse_override  # noqa: E402
@@ -146,9 +146,7 @@ def case_rows(path: Path, label: str, asked: list[dict]) -> list[dict]:
         ds = ds[[v for v in KEEP if v in ds.variables and v not in ("time", "x")]].load()
     slugs = detect(ds) if any(a["quantity"] in PASSAGES for a in asked) else None
     t_end = float(ds["time"].values[-1])
-    cpu = float(ds.attrs.get("cpu_time_s", math.nan))
-    if int(ds.attrs.get("resumed", 0)):
-        cpu = math.nan  # the file records its last segment only
+    cpu = run_cpu_seconds(ds.attrs)
     rows = []
     for a in asked:
         r = required_windows(ds, {a["quantity"]: a["precision"]}, position=a["position"],

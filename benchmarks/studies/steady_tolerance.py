@@ -11,7 +11,7 @@ that ran with run.until_steady, checking every `--every` output frames as the ru
 frame. For each tolerance: the simulated time at which the case would have stopped, the steady
 pressure drop the curves would show (Pa/m, analysis.curves.steady_pressure_drop on the series up
 to that time: the replayed steady window, or after the fill and MSER-5 when never steady), and its
-CPU time estimated pro rata of simulated time from the file's cpu_time_s (a warm-started case
+CPU time estimated pro rata of simulated time from the run's CPU seconds (all its parts; a warm-started case
 costs about the same per simulated second throughout; a case that fills or drains does not, so
 the estimate is rough there). A tolerance looser than the one the case ran with can only stop
 it earlier; a tighter one stops it at most at the end of its series (marked not steady).
@@ -33,6 +33,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from analysis.casefile import run_cpu_seconds  # noqa: E402
 from analysis.curves import steady_pressure_drop  # noqa: E402
 from engine import Case  # noqa: E402
 from engine.case import KEYS  # noqa: E402
@@ -84,7 +85,7 @@ def table(paths, tolerances, every: int = 5) -> pd.DataFrame:
         config = yaml.safe_load(ds.attrs["config_yaml"])
         if not config["run"]["until_steady"]:
             continue
-        end, cpu = float(ds["time"].values[-1]), float(ds.attrs["cpu_time_s"])
+        end, cpu = float(ds["time"].values[-1]), run_cpu_seconds(ds.attrs)
         own = float(config["run"]["steady_rel_error"])
         for tol in sorted(set(tolerances) | {own}):  # the run's own: what the changes compare with
             stop, dp, steady = replay(ds, tol, every)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from analysis import CaseFileError, config, geometry
-from analysis.casefile import seconds, slice_faces
+from analysis.casefile import run_cpu_seconds, seconds, slice_faces
 
 from . import synthetic as S
 
@@ -53,3 +53,13 @@ def test_slice_faces_bound_the_tube():
     assert faces[0] == pytest.approx(0.0, abs=1e-15)
     assert faces[-1] == pytest.approx(S.L_TUBE, rel=1e-12)
     assert np.allclose(np.diff(faces), S.DX, rtol=1e-12)
+
+
+def test_run_cpu_seconds_counts_every_part_or_says_unknown():
+    # a file of a resumed run: the total of its parts, not its last part
+    assert run_cpu_seconds({"cpu_time_s": 5.0, "cpu_time_total_s": 12.0, "resumed": 1}) == 12.0
+    # a file written before the total was recorded: its one part when it ran in one part
+    assert run_cpu_seconds({"cpu_time_s": 5.0, "resumed": 0}) == 5.0
+    # ... and unknown when it was resumed (its last part alone would undercount)
+    assert math.isnan(run_cpu_seconds({"cpu_time_s": 5.0, "resumed": 1}))
+    assert math.isnan(run_cpu_seconds({"cpu_time_s": 5.0}))

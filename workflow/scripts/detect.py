@@ -18,7 +18,7 @@ from _helpers import setup_logging, snakemake_or_cli, write_json, write_table
 
 def main(smk) -> None:
     log = setup_logging(smk)
-    from analysis.casefile import open_case, seconds
+    from analysis.casefile import open_case, run_cpu_seconds, seconds
     from analysis.curves import case_summary
     from analysis.slugs import detect
 
@@ -35,7 +35,7 @@ def main(smk) -> None:
                     "stop_reason": ds.attrs.get("stop_reason", ""),
                     "initial_state": str(ds.attrs.get("initial_state", "")),  # warm start from
                     "wall_time_s": float(ds.attrs.get("wall_time_s", float("nan"))),
-                    "cpu_time_s": float(ds.attrs.get("cpu_time_s", float("nan"))),
+                    "cpu_time_s": run_cpu_seconds(ds.attrs),  # all the run's parts
                     "time_step": float(ds.attrs.get("time_step", float("nan"))),
                     # False: a packed bed (bulk regime) of this case is not converged in the step
                     "dashpot_resolved": bool(int(ds.attrs["dashpot_resolved"])),

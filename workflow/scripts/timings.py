@@ -13,19 +13,16 @@ from pathlib import Path
 import netCDF4
 import pandas as pd
 
+from analysis.casefile import run_cpu_seconds
+
 
 def case_cpu_seconds(case_file: Path) -> float:
-    """CPU seconds of all the parts of the run that wrote a case file: its `cpu_time_total_s`, or
-    for a file without it (an older engine's) its `cpu_time_s` when the run was not resumed; NaN
-    when unknown or the file is missing."""
+    """CPU seconds of all the parts of the run that wrote a case file (analysis.casefile
+    .run_cpu_seconds); NaN when unknown or the file is missing."""
     if not case_file.is_file():
         return float("nan")
     with netCDF4.Dataset(case_file) as ds:
-        if "cpu_time_total_s" in ds.ncattrs():
-            return float(ds.cpu_time_total_s)
-        if int(getattr(ds, "resumed", 1)) == 0:
-            return float(getattr(ds, "cpu_time_s", float("nan")))
-    return float("nan")
+        return run_cpu_seconds({name: ds.getncattr(name) for name in ds.ncattrs()})
 
 
 def _complete_sum(values: pd.Series) -> float:
