@@ -56,6 +56,7 @@ include: "workflow/rules/figures.smk"
 include: "workflow/rules/validation.smk"
 include: "workflow/rules/benchmarks.smk"
 include: "workflow/rules/identification.smk"
+include: "workflow/rules/calibration.smk"
 
 
 rule all:

@@ -145,7 +145,10 @@ def surfaces(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds) -> lis
         key = t["summary_key"]
         if key not in rows or f"{key}_sem" not in rows:
             raise KeyError(f"the design has no column {key} or {key}_sem for {t['label']} {t['quantity']}")
-        out.append(fit_surface(bounds.coded(rows[list(bounds.keys)].to_numpy()), rows[key], rows[f"{key}_sem"]))
+        try:
+            out.append(fit_surface(bounds.coded(rows[list(bounds.keys)].to_numpy()), rows[key], rows[f"{key}_sem"]))
+        except ValueError as err:
+            raise ValueError(f"operating point {t['label']}, {t['quantity']}: {err}") from None
     return out
 
 
@@ -196,3 +199,57 @@ def fit(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, draws: int 
     at_bound = tuple(key for key, c in zip(bounds.keys, best) if abs(c) > 1.0 - 1e-6)
     return Fit(bounds.keys, bounds.decoded(best), np.sqrt(np.diag(covariance)), covariance,
                float(misfit(best, fitted, value, error)[0]), len(value) - k, at_bound, sample)
+
+
+def fitted_table(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, result: Fit) -> pd.DataFrame:
+    """The targets with what the fitted model gives: `fitted` (the surface at the fitted values)
+    and `fitted_std` (its spread over the fit's draws and the surface's own error), and `pull`,
+    (fitted - measured) over both errors combined."""
+    fitted = surfaces(design, targets, bounds)
+    at_best = bounds.coded(result.values)[None, :]
+    drawn = bounds.coded(result.draws)
+    table = targets.copy()
+    means, stds = [], []
+    for s in fitted:
+        mean, variance = s.predict(at_best)
+        spread = np.std(s.predict(drawn)[0]) if len(drawn) > 1 else 0.0
+        means.append(float(mean[0]))
+        stds.append(float(np.sqrt(variance[0] + spread ** 2)))
+    table["fitted"], table["fitted_std"] = means, stds
+    table["pull"] = (table["fitted"] - table["value"]) / np.sqrt(table["error"] ** 2 + table["fitted_std"] ** 2)
+    return table
+
+
+def misfit_grid(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, result: Fit,
+                n: int = 61) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Chi-square over the first two fitted parameters (own units; the others at their fitted
+    values): the axes (n,) and (n,) and chi2 (n, n), indexed [second, first]."""
+    fitted = surfaces(design, targets, bounds)
+    value, error = targets["value"].to_numpy(dtype=float), targets["error"].to_numpy(dtype=float)
+    axis = np.linspace(-1.0, 1.0, n)
+    centre = bounds.coded(result.values)
+    if len(bounds.keys) == 1:
+        x = np.repeat(centre[None, :], n, axis=0)
+        x[:, 0] = axis
+        return bounds.decoded(x)[:, 0], np.zeros(1), misfit(x, fitted, value, error)[None, :]
+    a, b = np.meshgrid(axis, axis)
+    x = np.repeat(centre[None, :], n * n, axis=0)
+    x[:, 0], x[:, 1] = a.ravel(), b.ravel()
+    chi2 = misfit(x, fitted, value, error).reshape(n, n)
+    corners = bounds.decoded(np.array([[-1.0] * len(centre), [1.0] * len(centre)]))
+    return (np.linspace(corners[0, 0], corners[1, 0], n), np.linspace(corners[0, 1], corners[1, 1], n), chi2)
+
+
+def propagated_std(gradient: np.ndarray, covariance: np.ndarray, own_sem: float) -> float:
+    """Standard deviation of a prediction: the fit's covariance carried through the gradient of the
+    predicted quantity with respect to the fitted parameters (own units), and the prediction
+    case's own standard error."""
+    gradient = np.asarray(gradient, dtype=float)
+    return float(np.sqrt(gradient @ np.asarray(covariance, dtype=float) @ gradient + own_sem ** 2))
+
+
+def central_gradient(plus: np.ndarray, minus: np.ndarray, plus_at: np.ndarray, minus_at: np.ndarray) -> np.ndarray:
+    """Gradient of a quantity from its values at one step up and one down along each parameter
+    (the steps may be unequal where a bound clips them)."""
+    return (np.asarray(plus, dtype=float) - np.asarray(minus, dtype=float)) / (
+        np.asarray(plus_at, dtype=float) - np.asarray(minus_at, dtype=float))

@@ -471,3 +471,58 @@ def _work_precision_row(axes, tables: list[pd.DataFrame], defaults: dict) -> Non
         ax.xaxis.set_minor_formatter(_ONE_TWO_FIVE)  # all minor labels would overlap on a short decade
         ax.set_ylim(bottom=floor / 1.5)
         ax.set_title(name, fontsize=10)
+
+
+TARGETS = {  # calibration target quantity -> (axis label, factor from SI to its unit)
+    "pressure_drop": ("pressure drop (hPa/m)", 1.0 / HPA),
+    "plug_velocity": ("plug velocity (m/s)", 1.0),
+    "plug_length": ("plug length (cm)", 100.0),
+}
+
+
+def calibration_misfit(first: np.ndarray, second: np.ndarray, chi2: np.ndarray, keys: tuple[str, ...],
+                       design: pd.DataFrame, values: np.ndarray, std: np.ndarray):
+    """Misfit map of a calibration (analysis.calibration.misfit_grid): chi2 above its minimum over
+    the first two fitted parameters, its 68 % and 95 % contours for two parameters (2.30, 6.18),
+    the simulated design points and the fitted values with their standard deviations."""
+    fig = Figure(figsize=(5.0, 4.0), layout="constrained")
+    ax = fig.add_subplot()
+    (xname, xunit, xf), (yname, yunit, yf) = parameter_words(keys[0]), parameter_words(keys[1])
+    delta = chi2 - np.nanmin(chi2)
+    image = ax.pcolormesh(first * xf, second * yf, np.log10(1.0 + delta), shading="gouraud", cmap="viridis_r")
+    fig.colorbar(image, ax=ax, label=r"$\log_{10}(1 + \chi^2 - \chi^2_{min})$")
+    ax.contour(first * xf, second * yf, delta, levels=[2.30, 6.18], colors=["w", "w"],
+               linestyles=["-", "--"], linewidths=1.0)
+    ax.plot(design[keys[0]] * xf, design[keys[1]] * yf, "k.", ms=6, clip_on=False, label="simulated cases")
+    ax.errorbar([values[0] * xf], [values[1] * yf], xerr=[std[0] * xf], yerr=[std[1] * yf], fmt="r*",
+                ms=10, capsize=3, label="fitted ± 1 s.d.")
+    ax.set_xlim(first[0] * xf, first[-1] * xf)  # the bounds: cases on them sit on the frame
+    ax.set_ylim(second[0] * yf, second[-1] * yf)
+    ax.set_xlabel(f"{xname} ({xunit})" if xunit else xname)
+    ax.set_ylabel(f"{yname} ({yunit})" if yunit else yname)
+    ax.set_title("calibration misfit (contours: 68 %, 95 %)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    return fig
+
+
+def measured_against_fitted(table: pd.DataFrame, what: str = "fitted"):
+    """One panel per measured quantity: each operating point's measured value +- its error and the
+    model's (analysis.calibration.fitted_table columns `fitted`, `fitted_std`)."""
+    quantities = [q for q in TARGETS if q in set(table["quantity"])]
+    fig = Figure(figsize=(3.2 * len(quantities), 3.2), layout="constrained")
+    for k, quantity in enumerate(quantities):
+        ax = fig.add_subplot(1, len(quantities), k + 1)
+        rows = table[table["quantity"] == quantity]
+        label, factor = TARGETS[quantity]
+        x = np.arange(len(rows))
+        ax.errorbar(x - 0.08, rows["value"] * factor, yerr=rows["error"] * factor, fmt="ks", capsize=3,
+                    label="measured ± 1 s.d.")
+        ax.errorbar(x + 0.08, rows[what] * factor, yerr=rows[f"{what}_std"] * factor, fmt="ro", capsize=3,
+                    label=f"{what} model ± 1 s.d.")
+        ax.set_xticks(x, [str(v) for v in rows["label"]])
+        ax.set_xlim(-0.6, len(rows) - 0.4)
+        ax.set_xlabel("operating point")
+        ax.set_ylabel(label)
+        if k == 0:
+            ax.legend(fontsize=7)
+    return fig

@@ -291,6 +291,26 @@ def parse_override(text: str) -> tuple[str, Any]:
         raise CaseError(f"override {text!r}: the value is not valid YAML: {_yaml_problem(err)}") from None
 
 
+def overlay_overrides(path: str | Path) -> list[tuple[str, Any]]:
+    """The (key, value) pairs of a workflow config overlay's `all_cases` mapping (e.g. the fitted
+    values a calibration writes), in file order."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as err:
+        raise CaseError(f"overlay {str(path)!r} is not valid YAML: {_yaml_problem(err)}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise CaseError(f"overlay {str(path)!r} cannot be read: {err}") from None
+    cases = data.get("all_cases") if isinstance(data, Mapping) else None
+    if not isinstance(cases, Mapping) or not cases:
+        raise CaseError(f"overlay {str(path)!r} must hold a mapping `all_cases` of dotted case keys "
+                        "and values")
+    for name in cases:
+        if name not in KEYS:
+            raise CaseError(f"overlay {str(path)!r}: {_unknown(name)}")
+    return list(cases.items())
+
+
 def _yaml_problem(err: yaml.YAMLError) -> str:
     """One line: what the YAML parser found wrong, and where (line, column from 1)."""
     mark = getattr(err, "problem_mark", None)

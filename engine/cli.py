@@ -9,7 +9,7 @@ import signal
 import sys
 
 from . import __version__
-from .case import KEYS, Case, CaseError, keys_markdown
+from .case import KEYS, Case, CaseError, keys_markdown, overlay_overrides
 from .parser import OneLineParser
 
 
@@ -23,12 +23,18 @@ def _keys(args: argparse.Namespace) -> int:
     return 0
 
 
+def _case(args: argparse.Namespace) -> Case:
+    """The case YAML with the overlays' `all_cases`, then the --set overrides (later wins)."""
+    pairs = [pair for path in args.overlay for pair in overlay_overrides(path)]
+    return Case.from_yaml(args.case).with_overrides([*pairs, *args.set])
+
+
 def _check(args: argparse.Namespace) -> int:
     """Validate a case and print what it implies (time step, contact time, feed)."""
     from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING, ContactModel
     from .feed import Feed
 
-    case = Case.from_yaml(args.case, args.set)
+    case = _case(args)
     model = ContactModel.from_case(case)
     feed = Feed(case, model.mass, case["run.seed"])
     print(f"case {args.case}: valid")
@@ -57,7 +63,7 @@ def _run(args: argparse.Namespace) -> int:
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO,
                         format="plugsim: %(message)s")
-    case = Case.from_yaml(args.case, args.set)
+    case = _case(args)
     try:
         check_threads(args.threads)
     except ValueError as err:
@@ -160,6 +166,10 @@ def _main(argv: list[str]) -> int:
     p.add_argument("case", help="case YAML, e.g. config/cases/horizontal.yaml")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
+    p.add_argument("--overlay", action="append", default=[], metavar="FILE.yaml",
+                   help="apply the `all_cases` keys of a workflow config overlay, e.g. the fitted "
+                        "values of a calibration (results/calibration/<name>/fitted.yaml), before "
+                        "--set (repeatable)")
     p.set_defaults(func=_check)
     p = sub.add_parser(
         "run", help="run one case and write its NetCDF case file (from an empty tube, a checkpoint, "
@@ -179,6 +189,10 @@ def _main(argv: list[str]) -> int:
                         "shorter run.duration), running the case again from the start (or its checkpoint)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
+    p.add_argument("--overlay", action="append", default=[], metavar="FILE.yaml",
+                   help="apply the `all_cases` keys of a workflow config overlay, e.g. the fitted "
+                        "values of a calibration (results/calibration/<name>/fitted.yaml), before "
+                        "--set (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
     p.add_argument("--initial-state", metavar="FROM.nc", default=None,
                    help="warm start: begin with the grains at the end of another case file "

@@ -46,6 +46,8 @@ HOW = {
         ("dry", "results/cases/h_restitution/particles.restitution~0.9.nc"),
     "snakemake -j1 validation reference --configfile config/partial.yaml": ("dry", "docs/reference/paper"),
     "snakemake --workflow-profile workflow/profiles/slurm": ("dry", "results/validation/validation.csv"),
+    "snakemake -j2 calibration --configfile config/calibration.yaml":
+        ("dry", "results/calibration/vertical_B/cases/B/gas.viscosity~6.5e-05_particles.friction~0.5.nc"),
     "plugsim run config/cases/horizontal.yaml --out results/h.nc --set run.duration=5 --set particles.friction=0.1":
         ("run", ["--set", "run.duration=0.05"]),  # the later --set wins: 5 frames instead of 500
     "plugsim --version": ("run", []),

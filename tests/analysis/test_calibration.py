@@ -1,12 +1,14 @@
 """Fitting effective parameters to measured points: design, response surfaces, the fit and its
 uncertainty, on synthetic responses whose exact optimum and error propagation are known."""
 
+import math
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from analysis.calibration import (Bounds, confirmation_design, first_design, fit, fit_surface,
-                                  misfit, quadratic_terms, surfaces)
+from analysis.calibration import (Bounds, central_gradient, confirmation_design, first_design, fit,
+                                  fit_surface, misfit, propagated_std, quadratic_terms, surfaces)
 
 BOUNDS = Bounds.of({"gas.viscosity": (4.5e-5, 8.5e-5), "particles.friction": (0.2, 0.8)})
 TRUE = np.array([6.73e-5, 0.5])
@@ -143,3 +145,13 @@ def test_misfit_weights_by_measurement_and_surface_variance():
                   for i, k in enumerate(ERRORS))
     assert misfit(off, fitted, value, error)[0] == pytest.approx(by_hand, rel=1e-6)
     assert quadratic_terms(off).shape == (1, 6)
+
+
+def test_prediction_error_carries_the_fit_covariance_through_the_gradient():
+    # a linear quantity y = 3 eta' + 2 mu': its variance is g^T C g exactly, plus the case's own
+    covariance = np.array([[0.04, 0.01], [0.01, 0.09]])
+    g = central_gradient(np.array([3.0 * 1.2, 2.0 * 0.5]), np.array([3.0 * 0.8, 2.0 * 0.2]),
+                         np.array([1.2, 0.5]), np.array([0.8, 0.2]))  # unequal (clipped) steps
+    np.testing.assert_allclose(g, [3.0, 2.0])
+    expected = math.sqrt(9 * 0.04 + 4 * 0.09 + 2 * 6 * 0.01 + 0.5 ** 2)
+    assert propagated_std(g, covariance, 0.5) == pytest.approx(expected)

@@ -172,3 +172,23 @@ def test_plots_draw_into_a_given_axes(default_slugs):
     fig = Figure()
     ax = fig.add_subplot()
     assert plots.slug_rate(slug_statistics(default_slugs), ax=ax) is fig
+
+
+def test_calibration_figures_in_the_papers_units():
+    keys = ("gas.viscosity", "particles.friction")
+    first, second = np.linspace(4.5e-5, 8.5e-5, 11), np.linspace(0.2, 0.8, 11)
+    a, b = np.meshgrid((first - 6e-5) / 2e-5, (second - 0.4) / 0.3)
+    chi2 = a ** 2 + b ** 2
+    design = pd.DataFrame({keys[0]: [4.5e-5, 6.5e-5, 8.5e-5], keys[1]: [0.2, 0.5, 0.8]})
+    fig = plots.calibration_misfit(first, second, chi2, keys, design, np.array([6e-5, 0.4]), np.array([1e-5, 0.1]))
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == r"gas viscosity $\eta$ (cP)" and "Coulomb" in ax.get_ylabel()
+    assert ax.get_xlim() == pytest.approx((0.045, 0.085))  # cP, not Pa s: the bounds
+    assert plots.undrawn_axes(fig) == []
+    table = pd.DataFrame({"label": ["B", "B"], "quantity": ["pressure_drop", "plug_length"],
+                          "value": [4500.0, 0.05], "error": [200.0, 0.02],
+                          "fitted": [4400.0, 0.04], "fitted_std": [100.0, 0.01]})
+    fig = plots.measured_against_fitted(table)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["pressure drop (hPa/m)", "plug length (cm)"]
+    assert fig.axes[0].get_lines()[0].get_ydata()[0] == pytest.approx(45.0)  # hPa/m
+    assert plots.undrawn_axes(fig) == []

@@ -37,6 +37,7 @@ def refused(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "broken.yaml").write_text("tube:\n  length: [0.5\n")
     (tmp_path / "notes.txt").write_text("not a case file\n")
+    (tmp_path / "fitted.yaml").write_text("all_cases:\n  gas.viscosty: 6.0e-05\n")
 
     def run(*args):
         before = set(tmp_path.iterdir())
@@ -72,6 +73,9 @@ def refused(tmp_path, capsys, monkeypatch):
     (["run", CASE, "--out", "/proc/x.nc"], "output /proc/x.nc: cannot write in /proc"),
     (["run", CASE, "--out", "x.nc", "--threads", "0"], "--threads: threads = 0: allowed 1 to"),
     (["run", CASE], "plugsim run: error: the following arguments are required: --out"),
+    (["check", CASE, "--overlay", "notes.txt"], "overlay 'notes.txt' must hold a mapping `all_cases`"),
+    (["check", CASE, "--overlay", "missing.yaml"], "overlay 'missing.yaml' cannot be read"),
+    (["check", CASE, "--overlay", "fitted.yaml"], "overlay 'fitted.yaml': unknown key 'gas.viscosty' (did you mean 'gas.viscosity'?)"),
     (["bench", "--steps", "0"], "plugsim bench: error: --steps = 0: allowed 1 or more"),
     (["bench", "--repeats", "-1"], "plugsim bench: error: --repeats = -1: allowed 1 or more"),
     (["bench", "--threads", "999"], "plugsim bench: error: --threads: threads = 999"),
@@ -79,6 +83,19 @@ def refused(tmp_path, capsys, monkeypatch):
 ])
 def test_bad_input_exits_2_with_one_line_before_any_work(refused, args, message):
     assert message in refused(*args)
+
+
+def test_overlay_keys_apply_before_set(tmp_path, capsys):
+    """A calibration's fitted.yaml (`all_cases`) sets its keys; --set still wins."""
+    overlay = tmp_path / "fitted.yaml"
+    overlay.write_text("all_cases:\n  gas.viscosity: 6.0e-05\n  particles.friction: 0.4\n  wall.friction: 0.4\n")
+    import argparse
+
+    from engine.cli import _case
+    args = argparse.Namespace(case=str(CASE), overlay=[str(overlay)], set=["particles.friction=0.3"])
+    case = _case(args)
+    assert case["gas.viscosity"] == 6.0e-05 and case["wall.friction"] == 0.4 and case["particles.friction"] == 0.3
+    assert main(["check", str(CASE), "--overlay", str(overlay)]) == 0
 
 
 def test_a_directory_as_output_is_refused_before_the_run(tmp_path):

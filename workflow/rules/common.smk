@@ -2,6 +2,7 @@
 # and it. The plan is built when the workflow is parsed (also for `snakemake -n`), so a typo in a
 # case key or a sweep reference fails before any job starts.
 
+import json
 import sys
 from pathlib import Path
 
@@ -80,3 +81,16 @@ def figure_caption(wildcards):
 
 def figure_category(wildcards):
     return captions.figure_category(wildcards.fig)
+
+
+def calibration_summaries(wildcards):
+    """Summaries of both rounds of a calibration: the first design's and the confirmation cases the
+    first fit chose (checkpoint calibration_first)."""
+    confirmation = checkpoints.calibration_first.get().output.confirmation
+    return CAL.first_summaries() + CAL.confirmation_summaries(confirmation)
+
+
+def calibration_fitted():
+    """The calibration's fitted.json (checkpoint calibration), read when a prediction is planned."""
+    with open(checkpoints.calibration.get().output.fitted) as f:
+        return json.load(f)

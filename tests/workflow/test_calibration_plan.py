@@ -1,0 +1,117 @@
+"""The calibration stage's cases (workflow/scripts/calibration_plan.py), without Snakemake: the design
+named by its values, the overrides of each case, warm starts from the design's centre, the design
+table, and the errors for keys, bounds and files that do not work."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "workflow" / "scripts"))
+from calibration_plan import CalibrationPlan, case_file, design_table  # noqa: E402
+from config_check import ConfigError  # noqa: E402
+
+EXAMPLE = str(ROOT / "resources/measurements/vertical_series_B.csv")
+V = str(ROOT / "config/cases/vertical.yaml")
+
+
+def section(**extra):
+    return {"name": "t", "measurements": EXAMPLE, "base": {"vertical": V}, "tube_length": 0.525,
+            "fit": {"gas.viscosity": [4.5e-5, 8.5e-5], "particles.friction": [0.2, 0.8]},
+            "same_as": {"wall.friction": "particles.friction"},
+            "overrides": {"run.until_steady": True}, **extra}
+
+
+def test_first_design_is_named_by_its_values_and_starts_from_its_centre():
+    plan = CalibrationPlan(section())
+    assert len(plan.first) == 9 and plan.start == "gas.viscosity~6.5e-05_particles.friction~0.5"
+    assert "gas.viscosity~4.5e-05_particles.friction~0.8" in plan.first
+    assert "initial_state" not in plan.simulate_inputs("B", plan.start)
+    corner = "gas.viscosity~8.5e-05_particles.friction~0.2"
+    assert plan.simulate_inputs("B", corner)["initial_state"] == case_file("results/calibration/t", "B", plan.start)
+
+
+def test_a_case_is_the_operating_point_with_the_values_its_name_carries():
+    plan = CalibrationPlan(section())
+    case = plan.case("B", "gas.viscosity~5.123e-05_particles.friction~0.33")
+    assert case["gas.viscosity"] == 5.123e-05
+    assert case["particles.friction"] == case["wall.friction"] == 0.33  # same_as
+    # the operating point: 2.2 l/min in the 7 mm tube, the measured feed, the simulated tube length
+    assert case["gas.superficial_velocity"] == pytest.approx(2.2e-3 / 60 / (math.pi * 0.0035 ** 2))
+    assert case["feed.mass_flow_kg_h"] == 2.49 and case["tube.length"] == 0.525
+    assert case["tube.inclination_deg"] == 90.0 and case["run.until_steady"] is True
+    assert plan.position("B") == pytest.approx(0.2625)  # mid-tube, where the rig's camera is
+
+
+def test_rig_tube_length_is_simulated_without_tube_length():
+    plan = CalibrationPlan(section(tube_length=None))
+    assert plan.operating("B")["tube.length"] == 1.01
+
+
+def test_names_round_to_four_digits_inside_the_bounds():
+    plan = CalibrationPlan(section())
+    assert plan.point_name([6.123456e-5, 0.8000001]) == "gas.viscosity~6.123e-05_particles.friction~0.8"
+    with pytest.raises(ValueError, match="outside"):
+        plan.parameters("gas.viscosity~9e-05_particles.friction~0.5")
+    with pytest.raises(ValueError, match="not key~value"):
+        plan.parameters("gas.viscosity~6e-05_particles.restitution~0.5")
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"fit": {"gas.viscosty": [4.5e-5, 8.5e-5]}}, "unknown case key 'gas.viscosty' (did you mean 'gas.viscosity'?)"),
+    ({"fit": {"gas.viscosity": [8.5e-5, 4.5e-5], "particles.friction": [0.2, 0.8]}}, "calibration.fit: bounds need"),
+    ({"same_as": {"wall.friction": "particles.restitution"}}, "same_as.wall.friction: 'particles.restitution' is not a fitted key"),
+    ({"base": {"horizontal": V}}, "no base case for the vertical points"),
+    ({"measurements": "missing.csv"}, "calibration.measurements: missing.csv: no such measurement file"),
+    ({"overrides": {"gas.superficial_velocity": 1.0}}, "overrides.gas.superficial_velocity: set by each operating point"),
+    ({"overrides": {"wall.friction": 0.3}}, "overrides.wall.friction: set by the fit"),
+    ({"overrides": {"run.duration": -1.0}}, "run.duration"),
+])
+def test_bad_sections_are_refused_naming_the_entry(change, words):
+    with pytest.raises(ConfigError) as err:
+        CalibrationPlan(section(**change))
+    assert words in str(err.value)
+
+
+def test_design_table_reads_values_from_names_and_quantities_from_summaries():
+    plan = CalibrationPlan(section())
+    summaries = {f"results/calibration/t/summaries/B/{plan.start}.json":
+                 {"pressure_drop": 3900.0, "pressure_drop_sem": 60.0, "slug_velocity": None,
+                  "slug_length_total": 0.03, "slug_length_total_sem": 0.002, "regime": "plug"}}
+    row = design_table(summaries, plan).iloc[0]
+    assert row["label"] == "B" and row["gas.viscosity"] == 6.5e-05 and row["pressure_drop"] == 3900.0
+    assert math.isnan(row["slug_velocity"]) and math.isnan(row["slug_velocity_sem"])  # no plugs passed
+
+
+def test_prediction_cases_bracket_the_fit_and_carry_its_covariance():
+    import calibration as script  # workflow/scripts/calibration.py
+
+    plan = CalibrationPlan(section(), {"measurements": EXAMPLE})
+    assert plan.folder == "results/calibration/t/prediction"
+    fitted = {"parameters": {"gas.viscosity": {"value": 6.0e-5, "std": 1.0e-5},
+                             "particles.friction": {"value": 0.75, "std": 0.1}},
+              "covariance": [[1.0e-10, 2.0e-7], [2.0e-7, 0.01]]}
+    names = plan.prediction_points(fitted)
+    assert names[0] == "gas.viscosity~6e-05_particles.friction~0.75"
+    assert names[3] == "gas.viscosity~6e-05_particles.friction~0.8"  # +1 s.d. clipped at the bound
+    assert plan.simulate_inputs("B", names[1], start=names[0])["initial_state"].endswith(f"prediction/cases/B/{names[0]}.nc")
+    # summaries of a model linear in the parameters: dp = 4000 + 1e8 (eta - 6e-5) + 2000 (mu - 0.75) Pa/m
+    summaries = {}
+    for name in names:
+        p = plan.parameters(name)
+        dp = 4000 + 1e8 * (p["gas.viscosity"] - 6e-5) + 2000 * (p["particles.friction"] - 0.75)
+        summaries[f"x/B/{name}.json"] = {"pressure_drop": dp, "pressure_drop_sem": 30.0, "slug_velocity": 0.2,
+                                         "slug_velocity_sem": 0.01, "slug_length_total": 0.03,
+                                         "slug_length_total_sem": 0.003}
+    table = script.prediction_table(plan, design_table(summaries, plan), fitted).set_index("quantity")
+    g = np.array([1e8, 2000.0])  # the gradient, recovered from the unequal (clipped) steps
+    expected = math.sqrt(g @ np.array(fitted["covariance"]) @ g + 30.0 ** 2)
+    assert table.loc["pressure_drop", "predicted"] == pytest.approx(4000.0)
+    assert table.loc["pressure_drop", "predicted_std"] == pytest.approx(expected, rel=1e-6)
+    # a quantity that does not change with the parameters keeps the case's own error only
+    assert table.loc["plug_velocity", "predicted_std"] == pytest.approx(0.01)

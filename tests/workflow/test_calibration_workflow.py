@@ -1,0 +1,81 @@
+"""The calibration stage end to end (marker `workflow`): measurements made by the model itself at a
+known viscosity and friction, calibrated by `snakemake calibration`; the fit must find them again
+within the uncertainty it reports, and that uncertainty must say more than the bounds alone."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from analysis.curves import case_summary
+
+from .test_workflow import ROOT, scratch, snakemake
+
+TRUE = {"gas.viscosity": 6.0e-5, "particles.friction": 0.4}
+BOUNDS = {"gas.viscosity": [4.5e-5, 8.5e-5], "particles.friction": [0.2, 0.8]}
+# a 10 cm vertical tube at the default flow: ~800 grains in plugs, 10-25 CPU s per 2 s case
+RUN = {"tube.length": 0.1, "run.duration": 2.0, "output.snapshots": False}
+
+
+def measure(work) -> dict:
+    """The 'rig': one case at the true values, reduced to the measured quantities at mid-tube."""
+    sets = [f"{k}={v}" for k, v in {**RUN, **TRUE, "wall.friction": TRUE["particles.friction"]}.items()]
+    out = work / "truth.nc"
+    cmd = [sys.executable, "-m", "engine.cli", "run", str(ROOT / "config/cases/vertical.yaml"), "--out", str(out),
+           "--quiet", *[a for s in sets for a in ("--set", s)]]
+    subprocess.run(cmd, check=True, cwd=work, timeout=600)
+    with xr.open_dataset(out) as ds:
+        return case_summary(ds.load(), position=0.05)
+
+
+@pytest.mark.workflow
+def test_calibration_recovers_the_viscosity_and_friction_it_was_measured_at(tmp_path):
+    work = scratch(tmp_path)
+    s = measure(work)
+    # the rig's errors: twice the case's own standard errors (a measurement no more precise than
+    # the model's run-to-run scatter); plug ranges +-2 of them
+    row = {"label": "T", "orientation": "vertical", "tube_length_m": 0.1, "tube_diameter_m": 0.007,
+           "particle_diameter_m": 0.0014, "particle_density_kg_m3": 937, "superficial_velocity_m_s": 1.0,
+           "mass_flow_kg_h": 2.49, "pressure_drop_hPa_m": s["pressure_drop"] / 100,
+           "pressure_drop_error_hPa_m": 2 * s["pressure_drop_sem"] / 100}
+    for name, key in (("plug_velocity", "slug_velocity"), ("plug_length", "slug_length_total")):
+        unit = "m_s" if name == "plug_velocity" else "m"
+        row[f"{name}_min_{unit}"] = s[key] - 2 * s[f"{key}_sem"]
+        row[f"{name}_max_{unit}"] = s[key] + 2 * s[f"{key}_sem"]
+    (work / "measured.csv").write_text(",".join(row) + "\n" + ",".join(str(v) for v in row.values()) + "\n")
+    config = {"calibration": {"name": "recovery", "measurements": "measured.csv",
+                              "base": {"vertical": "config/cases/vertical.yaml"}, "fit": BOUNDS,
+                              "same_as": {"wall.friction": "particles.friction"},
+                              "overrides": {k: v for k, v in RUN.items() if k != "tube.length"},
+                              "tube_length": RUN["tube.length"]}}
+    (work / "recovery.yaml").write_text(yaml.safe_dump(config))
+    run = snakemake("calibration", "--cores", "2", "--configfile", "recovery.yaml", cwd=work, timeout=1800)
+    assert run.returncode == 0, run.stderr[-5000:]
+    out = work / "results/calibration/recovery"
+    fitted = json.loads((out / "fitted.json").read_text())
+    assert fitted["cases"] == 9 + 5  # the first design, the confirmation round (the optimum and 4 around it)
+    for key, true in TRUE.items():
+        value, std = (fitted["parameters"][key][k] for k in ("value", "std"))
+        low, high = BOUNDS[key]
+        assert abs(value - true) <= 2 * std, (key, value, std, true)  # found within its uncertainty
+        # and the uncertainty is informative: below the spread of a uniform over the bounds
+        assert 0 < std < (high - low) / math.sqrt(12), (key, std)
+    # the overlay runs: plugsim check applies its keys
+    check = subprocess.run([sys.executable, "-m", "engine.cli", "check", "config/cases/vertical.yaml",
+                            "--overlay", str(out / "fitted.yaml")], cwd=work, capture_output=True, text=True)
+    assert check.returncode == 0, check.stderr
+    overlay = yaml.safe_load((out / "fitted.yaml").read_text())["all_cases"]
+    assert overlay["wall.friction"] == overlay["particles.friction"]
+    table = (out / "table.md").read_text()
+    assert "pressure_drop" in table and "plug_length" in table
+    from matplotlib.image import imread
+    for png in ("misfit.png", "measured_vs_fitted.png"):
+        assert imread(out / png).ndim == 3
+    assert np.isfinite(fitted["chi2"])
