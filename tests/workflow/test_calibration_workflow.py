@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 
@@ -79,3 +80,21 @@ def test_calibration_recovers_the_viscosity_and_friction_it_was_measured_at(tmp_
     for png in ("misfit.png", "measured_vs_fitted.png"):
         assert imread(out / png).ndim == 3
     assert np.isfinite(fitted["chi2"])
+
+
+def test_calibration_needs_its_config_and_refuses_a_bad_measurement_file_before_any_job(tmp_path):
+    work = scratch(tmp_path)
+    run = snakemake("-n", "calibration", cwd=work)
+    assert run.returncode != 0 and "run `snakemake -j2 calibration --configfile config/calibration.yaml`" in run.stderr
+    bad = (ROOT / "resources/measurements/vertical_series_B.csv").read_text().replace(",45,2,", ",45,-2,")
+    (work / "resources/measurements/vertical_series_B.csv").write_text(bad)
+    run = snakemake("-n", "calibration", "--configfile", "config/calibration.yaml", cwd=work)
+    assert run.returncode == 2
+    assert ("config: calibration.measurements: resources/measurements/vertical_series_B.csv: line 6 (label B), "
+            "column pressure_drop_error_hPa_m: must be a finite number > 0, got -2") in run.stderr
+    shutil.copy(ROOT / "resources/measurements/vertical_series_B.csv", work / "resources/measurements")
+    config = yaml.safe_load((ROOT / "config/calibration.yaml").read_text())
+    config["calibration"]["fit"]["particles.fricton"] = config["calibration"]["fit"].pop("particles.friction")
+    (work / "typo.yaml").write_text(yaml.safe_dump(config))
+    run = snakemake("-n", "calibration", "--configfile", "typo.yaml", cwd=work)
+    assert run.returncode == 2 and "did you mean 'particles.friction'" in run.stderr
