@@ -129,6 +129,7 @@ class Fit:
     dof: int
     at_bound: tuple[str, ...]
     draws: np.ndarray  # (n, k) optima of the perturbed misfits, own units
+    surfaces: tuple[Surface, ...]  # one per target, in the targets' order
 
     def as_dict(self) -> dict:
         return {"parameters": {k: {"value": float(v), "std": float(s)}
@@ -198,19 +199,18 @@ def fit(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, draws: int 
     covariance = np.atleast_2d(np.cov(sample, rowvar=False))
     at_bound = tuple(key for key, c in zip(bounds.keys, best) if abs(c) > 1.0 - 1e-6)
     return Fit(bounds.keys, bounds.decoded(best), np.sqrt(np.diag(covariance)), covariance,
-               float(misfit(best, fitted, value, error)[0]), len(value) - k, at_bound, sample)
+               float(misfit(best, fitted, value, error)[0]), len(value) - k, at_bound, sample, tuple(fitted))
 
 
-def fitted_table(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, result: Fit) -> pd.DataFrame:
+def fitted_table(targets: pd.DataFrame, bounds: Bounds, result: Fit) -> pd.DataFrame:
     """The targets with what the fitted model gives: `fitted` (the surface at the fitted values)
     and `fitted_std` (its spread over the fit's draws and the surface's own error), and `pull`,
     (fitted - measured) over both errors combined."""
-    fitted = surfaces(design, targets, bounds)
     at_best = bounds.coded(result.values)[None, :]
     drawn = bounds.coded(result.draws)
     table = targets.copy()
     means, stds = [], []
-    for s in fitted:
+    for s in result.surfaces:
         mean, variance = s.predict(at_best)
         spread = np.std(s.predict(drawn)[0]) if len(drawn) > 1 else 0.0
         means.append(float(mean[0]))
@@ -220,11 +220,12 @@ def fitted_table(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, re
     return table
 
 
-def misfit_grid(design: pd.DataFrame, targets: pd.DataFrame, bounds: Bounds, result: Fit,
+def misfit_grid(targets: pd.DataFrame, bounds: Bounds, result: Fit,
                 n: int = 61) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Chi-square over the first two fitted parameters (own units; the others at their fitted
-    values): the axes (n,) and (n,) and chi2 (n, n), indexed [second, first]."""
-    fitted = surfaces(design, targets, bounds)
+    values): the axes (n,) and (n,) and chi2 (n, n), indexed [second, first]; for one parameter
+    its axis, [0.] and chi2 (1, n)."""
+    fitted = list(result.surfaces)
     value, error = targets["value"].to_numpy(dtype=float), targets["error"].to_numpy(dtype=float)
     axis = np.linspace(-1.0, 1.0, n)
     centre = bounds.coded(result.values)

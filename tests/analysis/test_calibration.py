@@ -155,3 +155,19 @@ def test_prediction_error_carries_the_fit_covariance_through_the_gradient():
     np.testing.assert_allclose(g, [3.0, 2.0])
     expected = math.sqrt(9 * 0.04 + 4 * 0.09 + 2 * 6 * 0.01 + 0.5 ** 2)
     assert propagated_std(g, covariance, 0.5) == pytest.approx(expected)
+
+
+def test_fitted_table_and_misfit_map_of_an_exact_fit():
+    from analysis.calibration import fitted_table, misfit_grid
+
+    targets = target_table()
+    result = fit(design_table(), targets, BOUNDS, draws=20)
+    table = fitted_table(targets, BOUNDS, result)
+    # exact surfaces, exact targets: the fitted model reproduces each measured value
+    np.testing.assert_allclose(table["fitted"], targets["value"], rtol=1e-5)
+    assert np.all(np.abs(table["pull"]) < 1e-3) and np.all(table["fitted_std"] > 0)
+    first, second, chi2 = misfit_grid(targets, BOUNDS, result, n=41)
+    assert (first[0], first[-1], second[0], second[-1]) == pytest.approx((4.5e-5, 8.5e-5, 0.2, 0.8))
+    row, column = np.unravel_index(np.argmin(chi2), chi2.shape)
+    # the map's least cell is the one holding the truth (grid spacing 1e-6 Pa s and 0.015)
+    assert abs(first[column] - TRUE[0]) <= 1e-6 and abs(second[row] - TRUE[1]) <= 0.015

@@ -136,7 +136,7 @@ def main(smk) -> None:
         confirm.insert(0, "point", [plan.point_name(row) for row in confirm.to_numpy()])
         confirm.drop_duplicates("point").query("point not in @plan.first").to_csv(smk.output.confirmation, index=False)
         return
-    table = cal.fitted_table(design, goal, plan.bounds, result)
+    table = cal.fitted_table(goal, plan.bounds, result)
     out = result.as_dict()
     out.update({"covariance": result.covariance.tolist(), "keys": list(result.keys),
                 "measurements": plan.section["measurements"], "cases": len(design),
@@ -149,7 +149,7 @@ def main(smk) -> None:
         f.write(markdown(table, result, result.keys))
     from analysis.plots import calibration_misfit, measured_against_fitted
 
-    first, second, chi2 = cal.misfit_grid(design, goal, plan.bounds, result)
+    first, second, chi2 = cal.misfit_grid(goal, plan.bounds, result)
     if len(result.keys) >= 2:
         calibration_misfit(first, second, chi2, result.keys, design, result.values, result.std).savefig(
             smk.output.misfit, dpi=150)

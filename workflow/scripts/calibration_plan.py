@@ -25,10 +25,14 @@ import sweeps as sw
 from config_check import ConfigError
 
 from analysis.calibration import Bounds, first_design
-from analysis.measurements import MeasurementFileError, read_measurements
+from analysis.measurements import QUANTITIES, MeasurementFileError, read_measurements
 from engine.case import KEYS, Case, CaseError
 
 INCLINATION = {"horizontal": 0.0, "vertical": 90.0}
+# the case keys a measured operating point sets (CalibrationPlan.operating)
+OPERATING = ("tube.length", "tube.diameter", "tube.inclination_deg", "particles.diameter",
+             "particles.density", "gas.superficial_velocity", "feed.mass_flow_kg_h")
+SUMMARY_KEYS = tuple(key for key, _ in QUANTITIES.values())  # the summary quantities measured
 SIGNIFICANT = 4  # digits of a fitted value in a case name (a confirmation point is rounded to them)
 
 
@@ -71,15 +75,13 @@ class CalibrationPlan:
             if source not in fit:
                 raise ConfigError(f"config: calibration.same_as.{target}: {source!r} is not a fitted key "
                                   f"({', '.join(fit)})")
-        operating = ("tube.diameter", "tube.inclination_deg", "particles.diameter", "particles.density",
-                     "gas.superficial_velocity", "feed.mass_flow_kg_h")
         for key in self.section.get("overrides") or {}:
-            if key in operating or key in fit or key in (self.section.get("same_as") or {}):
+            if key == "tube.length":
+                raise ConfigError("config: calibration.overrides.tube.length: give calibration.tube_length")
+            if key in OPERATING or key in fit or key in (self.section.get("same_as") or {}):
                 raise ConfigError(f"config: calibration.overrides.{key}: set by "
-                                  + ("each operating point of the measurement file" if key in operating
+                                  + ("each operating point of the measurement file" if key in OPERATING
                                      else "the fit") + "; leave it out here")
-        if "tube.length" in (self.section.get("overrides") or {}):
-            raise ConfigError("config: calibration.overrides.tube.length: give calibration.tube_length")
         try:
             self.bounds = Bounds.of({k: tuple(v) for k, v in fit.items()})
         except ValueError as err:
@@ -113,7 +115,8 @@ class CalibrationPlan:
                 raise ValueError(f"calibration case {point!r}: not key~value_... of {self.bounds.keys}")
             values[key] = float(text)
         for key, low, high in zip(self.bounds.keys, self.bounds.low, self.bounds.high):
-            if key not in values or not low * (1 - 1e-9) <= values[key] <= high * (1 + 1e-9):
+            slack = 1e-9 * (high - low)  # a name's value is rounded, never pushed outside
+            if key not in values or not low - slack <= values[key] <= high + slack:
                 raise ValueError(f"calibration case {point!r}: {key} missing or outside [{low}, {high}]")
         return values
 
@@ -125,13 +128,11 @@ class CalibrationPlan:
         if label not in self.points.index:
             raise ValueError(f"calibration: no operating point {label!r} in {self.measurements}")
         p = self.points.loc[label]
-        return {"tube.length": float(self.section.get("tube_length") or p["tube_length_m"]),
-                "tube.diameter": float(p["tube_diameter_m"]),
-                "tube.inclination_deg": INCLINATION[p["orientation"]],
-                "particles.diameter": float(p["particle_diameter_m"]),
-                "particles.density": float(p["particle_density_kg_m3"]),
-                "gas.superficial_velocity": float(p["superficial_velocity_m_s"]),
-                "feed.mass_flow_kg_h": float(p["mass_flow_kg_h"])}
+        values = (float(self.section.get("tube_length") or p["tube_length_m"]), float(p["tube_diameter_m"]),
+                  INCLINATION[p["orientation"]], float(p["particle_diameter_m"]),
+                  float(p["particle_density_kg_m3"]), float(p["superficial_velocity_m_s"]),
+                  float(p["mass_flow_kg_h"]))
+        return dict(zip(OPERATING, values))
 
     def overrides(self, label: str, point: str) -> dict[str, Any]:
         """Every override of a case: the calibration's `overrides` < the operating point < the
@@ -197,9 +198,10 @@ def design_table(summaries: Mapping[str, Mapping], plan: CalibrationPlan) -> pd.
     for path, s in summaries.items():
         label, point = Path(path).parent.name, Path(path).stem
         row = {"label": label, "point": point, **plan.parameters(point)}
-        for key in ("pressure_drop", "slug_velocity", "slug_length_total", "n_particles"):
-            row[key] = float(s.get(key, math.nan) if s.get(key) is not None else math.nan)
-            row[f"{key}_sem"] = float(s.get(f"{key}_sem") if s.get(f"{key}_sem") is not None else math.nan)
+        for key in (*SUMMARY_KEYS, "n_particles"):
+            for name in (key, f"{key}_sem"):
+                value = s.get(name)
+                row[name] = math.nan if value is None else float(value)
         row["regime"] = s.get("regime", "")
         rows.append(row)
     return pd.DataFrame(rows)
