@@ -56,8 +56,10 @@ def first_design(bounds: Bounds) -> pd.DataFrame:
 
 def confirmation_design(bounds: Bounds, values: np.ndarray, std: np.ndarray) -> pd.DataFrame:
     """Around a fitted optimum: the optimum and one standard deviation either side along each
-    parameter (2k + 1 points), kept inside the bounds."""
+    parameter (2k + 1 points), kept inside the bounds; a quarter of the bounds' width where the
+    standard deviation is not known (not finite)."""
     values, std = np.asarray(values, dtype=float), np.asarray(std, dtype=float)
+    std = np.where(np.isfinite(std), std, 0.25 * (bounds.high - bounds.low))
     points = [values]
     for i, sign in itertools.product(range(len(values)), (-1.0, 1.0)):
         p = values.copy()

@@ -67,6 +67,8 @@ def test_confirmation_design_brackets_the_optimum_inside_the_bounds():
     assert len(design) == 5
     assert design["gas.viscosity"].max() == 8.5e-5  # clipped at the upper bound
     assert sorted(design["particles.friction"].round(12)) == [0.4, 0.5, 0.5, 0.5, 0.6]
+    unknown = confirmation_design(BOUNDS, np.array([6.5e-5, 0.5]), np.array([np.nan, 0.1]))
+    assert sorted(unknown["gas.viscosity"].round(12)) == pytest.approx([5.5e-5, 6.5e-5, 6.5e-5, 6.5e-5, 7.5e-5])
 
 
 def test_bounds_need_low_below_high():

@@ -115,3 +115,9 @@ def test_prediction_cases_bracket_the_fit_and_carry_its_covariance():
     assert table.loc["pressure_drop", "predicted_std"] == pytest.approx(expected, rel=1e-6)
     # a quantity that does not change with the parameters keeps the case's own error only
     assert table.loc["plug_velocity", "predicted_std"] == pytest.approx(0.01)
+
+
+def test_job_time_request_follows_the_workflow_cost_model():
+    plan = CalibrationPlan(section(overrides={"run.duration": 20.0}))
+    # 20 s simulated of the paper's tube at its feed: 10 + 2 x 20 min
+    assert plan.runtime_minutes("B", plan.start) == 50

@@ -32,8 +32,7 @@ if config.get("calibration"):
             f"results/benchmarks/jobs/calibration_simulate/{CAL.name}/{{label}}/{{point}}.tsv"
         threads: 1
         resources:
-            runtime=lambda wc: int(10 + 2 * CAL.case(wc.label, wc.point)["run.duration"]
-                                   * CAL.case(wc.label, wc.point)["tube.length"] / 0.525),
+            runtime=lambda wc: CAL.runtime_minutes(wc.label, wc.point),
             mem_mb=2000,
         script:
             "../scripts/simulate.py"
@@ -136,8 +135,7 @@ if config.get("calibration"):
                 f"results/benchmarks/jobs/prediction_simulate/{CAL.name}/{{label}}/{{point}}.tsv"
             threads: 1
             resources:
-                runtime=lambda wc: int(10 + 2 * PRED.case(wc.label, wc.point)["run.duration"]
-                                       * PRED.case(wc.label, wc.point)["tube.length"] / 0.525),
+                runtime=lambda wc: PRED.runtime_minutes(wc.label, wc.point),
                 mem_mb=2000,
             script:
                 "../scripts/simulate.py"

@@ -162,6 +162,14 @@ class CalibrationPlan:
             inputs["initial_state"] = case_file(self.folder, label, start)
         return inputs
 
+    def runtime_minutes(self, label: str, point: str) -> int:
+        """Wall-time request of a case's job (SLURM --time), the workflow's cost model
+        (Plan.runtime_minutes): 10 min plus twice ~1 min per simulated second for 3000 grains,
+        scaled with tube length and mass flow."""
+        case = self.case(label, point)
+        grains = max(1.0, case["feed.mass_flow_kg_h"] / 2.49) * case["tube.length"] / 0.525
+        return int(10 + 2 * case["run.duration"] * grains)
+
     def position(self, label: str) -> float:
         """Where slugs are measured (m): mid-tube of the simulated tube, where the papers' camera is."""
         return 0.5 * self.operating(label)["tube.length"]
