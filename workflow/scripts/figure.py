@@ -220,9 +220,11 @@ def curve(inp, spec, settings):
 def experiment_table(path):
     """V table 1 with the superficial velocity v_s = 4 Vdot / (pi D^2) of each air flow (m/s)."""
     import pandas as pd
+
+    from analysis.measurements import superficial_velocity
     exp = pd.read_csv(path, comment="#")
     diameter = 0.007  # m, the experiment's tube (V §3)
-    exp["superficial_velocity"] = exp["air_flow_l_min"] / 1000 / 60 / (math.pi * diameter**2 / 4)
+    exp["superficial_velocity"] = superficial_velocity(exp["air_flow_l_min"], diameter)
     return exp
 
 
