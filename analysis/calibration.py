@@ -218,8 +218,13 @@ def fitted_table(targets: pd.DataFrame, bounds: Bounds, result: Fit) -> pd.DataF
         means.append(float(mean[0]))
         stds.append(float(np.sqrt(variance[0] + spread ** 2)))
     table["fitted"], table["fitted_std"] = means, stds
-    table["pull"] = (table["fitted"] - table["value"]) / np.sqrt(table["error"] ** 2 + table["fitted_std"] ** 2)
+    table["pull"] = pull(table, "fitted")
     return table
+
+
+def pull(table: pd.DataFrame, model: str) -> pd.Series:
+    """(model - measured) over the measured error and the model's (`<model>_std`) combined."""
+    return (table[model] - table["value"]) / np.sqrt(table["error"] ** 2 + table[f"{model}_std"] ** 2)
 
 
 def misfit_grid(targets: pd.DataFrame, bounds: Bounds, result: Fit,
@@ -253,6 +258,7 @@ def propagated_std(gradient: np.ndarray, covariance: np.ndarray, own_sem: float)
 
 def central_gradient(plus: np.ndarray, minus: np.ndarray, plus_at: np.ndarray, minus_at: np.ndarray) -> np.ndarray:
     """Gradient of a quantity from its values at one step up and one down along each parameter
-    (the steps may be unequal where a bound clips them)."""
-    return (np.asarray(plus, dtype=float) - np.asarray(minus, dtype=float)) / (
-        np.asarray(plus_at, dtype=float) - np.asarray(minus_at, dtype=float))
+    (the steps may be unequal where a bound clips them); 0 along a parameter without a step."""
+    step = np.asarray(plus_at, dtype=float) - np.asarray(minus_at, dtype=float)
+    change = np.asarray(plus, dtype=float) - np.asarray(minus, dtype=float)
+    return np.divide(change, step, out=np.zeros_like(change), where=step > 0)

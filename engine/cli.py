@@ -29,6 +29,16 @@ def _case(args: argparse.Namespace) -> Case:
     return Case.from_yaml(args.case).with_overrides([*pairs, *args.set])
 
 
+def _case_options(p: argparse.ArgumentParser) -> None:
+    """--set and --overlay, the options that change a case YAML's keys (run, check)."""
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
+    p.add_argument("--overlay", action="append", default=[], metavar="FILE.yaml",
+                   help="apply the `all_cases` keys of a workflow config overlay, e.g. the fitted "
+                        "values of a calibration (results/calibration/<name>/fitted.yaml), before "
+                        "--set (repeatable)")
+
+
 def _check(args: argparse.Namespace) -> int:
     """Validate a case and print what it implies (time step, contact time, feed)."""
     from .contact import DASHPOT_RESOLVED_RATIO, DASHPOT_WARNING, ContactModel
@@ -164,12 +174,7 @@ def _main(argv: list[str]) -> int:
     p.set_defaults(func=_keys)
     p = sub.add_parser("check", help="validate a case file (with overrides) and print derived numbers")
     p.add_argument("case", help="case YAML, e.g. config/cases/horizontal.yaml")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
-    p.add_argument("--overlay", action="append", default=[], metavar="FILE.yaml",
-                   help="apply the `all_cases` keys of a workflow config overlay, e.g. the fitted "
-                        "values of a calibration (results/calibration/<name>/fitted.yaml), before "
-                        "--set (repeatable)")
+    _case_options(p)
     p.set_defaults(func=_check)
     p = sub.add_parser(
         "run", help="run one case and write its NetCDF case file (from an empty tube, a checkpoint, "
@@ -187,12 +192,7 @@ def _main(argv: list[str]) -> int:
     p.add_argument("--overwrite", action="store_true",
                    help="replace a finished case file at OUT that holds another result (other keys, a "
                         "shorter run.duration), running the case again from the start (or its checkpoint)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a key, e.g. --set particles.friction=0.1 (repeatable)")
-    p.add_argument("--overlay", action="append", default=[], metavar="FILE.yaml",
-                   help="apply the `all_cases` keys of a workflow config overlay, e.g. the fitted "
-                        "values of a calibration (results/calibration/<name>/fitted.yaml), before "
-                        "--set (repeatable)")
+    _case_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar, warnings only (workflow mode)")
     p.add_argument("--initial-state", metavar="FROM.nc", default=None,
                    help="warm start: begin with the grains at the end of another case file "

@@ -173,3 +173,9 @@ def test_fitted_table_and_misfit_map_of_an_exact_fit():
     row, column = np.unravel_index(np.argmin(chi2), chi2.shape)
     # the map's least cell is the one holding the truth (grid spacing 1e-6 Pa s and 0.015)
     assert abs(first[column] - TRUE[0]) <= 1e-6 and abs(second[row] - TRUE[1]) <= 0.015
+
+
+def test_gradient_is_zero_along_a_parameter_without_a_step():
+    # both steps clipped onto the same bound: no information, no division by zero
+    g = central_gradient(np.array([5.0, 2.0]), np.array([1.0, 2.0]), np.array([1.2, 0.8]), np.array([0.8, 0.8]))
+    np.testing.assert_allclose(g, [10.0, 0.0], rtol=1e-12)  # 4 / 0.4: rounding only

@@ -17,12 +17,13 @@ Standalone (from the repository root; `section` is the config's calibration mapp
 
 import json
 import math
+from pathlib import Path
 
 from _helpers import setup_logging, snakemake_or_cli, write_json, write_table
 
 
 def read_summaries(paths) -> dict:
-    return {str(p): json.loads(open(p).read()) for p in paths}
+    return {str(p): json.loads(Path(p).read_text()) for p in paths}
 
 
 def overlay_yaml(keys, values, std, same_as: dict, source: str) -> str:
@@ -68,7 +69,7 @@ def prediction_table(plan, design, fitted: dict):
     deviation either side along each key, with the case's own standard error."""
     import numpy as np
 
-    from analysis.calibration import central_gradient, propagated_std
+    from analysis.calibration import central_gradient, propagated_std, pull
     from analysis.measurements import targets
 
     names = plan.prediction_points(fitted)
@@ -78,18 +79,14 @@ def prediction_table(plan, design, fitted: dict):
     predicted, spread = [], []
     for _, t in table.iterrows():
         key, at = t["summary_key"], rows.loc[t["label"]]
-        centre = at.loc[names[0]]
-        plus = at.loc[names[1::2]]
-        minus = at.loc[names[2::2]]
-        steps = plus[keys].to_numpy().diagonal() - minus[keys].to_numpy().diagonal()
-        gradient = np.where(steps > 0, central_gradient(plus[key].to_numpy(), minus[key].to_numpy(),
-                                                        plus[keys].to_numpy().diagonal(),
-                                                        minus[keys].to_numpy().diagonal()), 0.0)
+        centre, plus, minus = at.loc[names[0]], at.loc[names[1::2]], at.loc[names[2::2]]
+        gradient = central_gradient(plus[key].to_numpy(), minus[key].to_numpy(),
+                                    plus[keys].to_numpy().diagonal(), minus[keys].to_numpy().diagonal())
+        own = float(centre[f"{key}_sem"])
         predicted.append(float(centre[key]))
-        own = centre[f"{key}_sem"]
-        spread.append(propagated_std(gradient, np.array(fitted["covariance"]), float(own if own == own else 0.0)))
+        spread.append(propagated_std(gradient, np.array(fitted["covariance"]), own if math.isfinite(own) else 0.0))
     table["predicted"], table["predicted_std"] = predicted, spread
-    table["pull"] = (table["predicted"] - table["value"]) / np.sqrt(table["error"] ** 2 + table["predicted_std"] ** 2)
+    table["pull"] = pull(table, "predicted")
     return table
 
 
