@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -79,3 +80,16 @@ def test_sigint_to_snakemake_stops_the_case_which_resumes_on_the_next_run(tmp_pa
     assert second.returncode == 0, second.stderr[-3000:]
     log = (work / LOG).read_text()
     assert "resuming" in log and (work / CASE).exists() and not ckpt.exists()
+
+
+def test_a_signal_snakemake_ignores_stays_ignored_for_the_cases():
+    # `nohup snakemake … &` from a script starts snakemake with SIGINT ignored; forwarding it
+    # anyway stopped the running cases while snakemake went on to start the next ones
+    code = ("import signal; from workflow.scripts import running; running.forward_signals(); "
+            "print(signal.getsignal(signal.SIGINT) is signal.SIG_IGN, "
+            "callable(signal.getsignal(signal.SIGTERM)))")
+    ignore_sigint = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)  # noqa: E731
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                          preexec_fn=ignore_sigint, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "True"]

@@ -73,10 +73,14 @@ def forward(signum: int) -> list[int]:
 
 def forward_signals() -> None:
     """Make SIGINT and SIGTERM reach the running cases first, then Snakemake's own handlers
-    (SIGINT: KeyboardInterrupt, SIGTERM: its graceful stop). Call in the main thread, after
-    Snakemake installed its handlers (the Snakefile's `onstart`)."""
+    (SIGINT: KeyboardInterrupt, SIGTERM: its graceful stop). A signal snakemake ignores stays
+    ignored for the cases too: a job started in the background of a script (`nohup snakemake … &`)
+    ignores SIGINT, and forwarding it would stop the cases while snakemake starts the next ones.
+    Call in the main thread, after Snakemake installed its handlers (the Snakefile's `onstart`)."""
     for signum in (signal.SIGINT, signal.SIGTERM):
         previous = signal.getsignal(signum)
+        if previous == signal.SIG_IGN:
+            continue
 
         def handler(num, frame, previous=previous):
             forward(num)
