@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -82,10 +83,21 @@ def test_design_table_reads_values_from_names_and_quantities_from_summaries():
     plan = CalibrationPlan(section())
     summaries = {f"results/calibration/t/summaries/B/{plan.start}.json":
                  {"pressure_drop": 3900.0, "pressure_drop_sem": 60.0, "slug_velocity": None,
-                  "slug_length_total": 0.03, "slug_length_total_sem": 0.002, "regime": "plug"}}
+                  "slug_length_total": 0.03, "slug_length_total_sem": 0.002, "regime": "plug",
+                  "cpu_time_s": 412.5}}
     row = design_table(summaries, plan).iloc[0]
     assert row["label"] == "B" and row["gas.viscosity"] == 6.5e-05 and row["pressure_drop"] == 3900.0
     assert math.isnan(row["slug_velocity"]) and math.isnan(row["slug_velocity_sem"])  # no plugs passed
+    assert row["cpu_time_s"] == 412.5
+
+
+def test_cost_sums_the_known_cpu_seconds_and_counts_the_unknown():
+    import calibration as script  # workflow/scripts/calibration.py
+
+    design = pd.DataFrame({"cpu_time_s": [400.0, math.nan, 250.5]})
+    c = script.cost(design)
+    assert c == {"cases": 3, "cpu_time_s": 650.5, "cpu_time_unknown": 1}
+    assert script.cost_line(c) == "3 cases, 650 CPU s (1 of them without a CPU time)"
 
 
 def test_prediction_cases_bracket_the_fit_and_carry_its_covariance():

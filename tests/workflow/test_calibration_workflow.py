@@ -62,6 +62,9 @@ def test_calibration_recovers_the_viscosity_and_friction_it_was_measured_at(tmp_
     out = work / "results/calibration/recovery"
     fitted = json.loads((out / "fitted.json").read_text())
     assert fitted["cases"] == 9 + 5  # the first design, the confirmation round (the optimum and 4 around it)
+    summaries = sorted((out / "summaries").rglob("*.json"))
+    assert len(summaries) == fitted["cases"] and fitted["cpu_time_unknown"] == 0
+    assert fitted["cpu_time_s"] == pytest.approx(sum(json.loads(p.read_text())["cpu_time_s"] for p in summaries))
     for key, true in TRUE.items():
         value, std = (fitted["parameters"][key][k] for k in ("value", "std"))
         low, high = BOUNDS[key]

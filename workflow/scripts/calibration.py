@@ -40,12 +40,24 @@ def overlay_yaml(keys, values, std, same_as: dict, source: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def markdown(table, result, keys) -> str:
+def cost(design) -> dict:
+    """The cases behind a fit or a prediction and their CPU seconds (the sum over the cases whose
+    summary has them; `cpu_time_unknown`: how many have not)."""
+    cpu = design["cpu_time_s"]
+    return {"cases": len(design), "cpu_time_s": float(cpu.sum()), "cpu_time_unknown": int(cpu.isna().sum())}
+
+
+def cost_line(c: dict) -> str:
+    unknown = f" ({c['cpu_time_unknown']} of them without a CPU time)" if c["cpu_time_unknown"] else ""
+    return f"{c['cases']} cases, {c['cpu_time_s']:.0f} CPU s{unknown}"
+
+
+def markdown(table, result, keys, c: dict) -> str:
     lines = ["| parameter | fitted | s.d. |", "|---|---|---|"]
     lines += [f"| {k} | {v:.4g} | {s:.2g} |" for k, v, s in zip(keys, result.values, result.std)]
     lines += ["", f"chi-square {result.chi2:.2f} with {result.dof} degrees of freedom"
-              + (f"; at a bound: {', '.join(result.at_bound)}" if result.at_bound else ""), "",
-              *quantity_rows(table, "fitted")]
+              + (f"; at a bound: {', '.join(result.at_bound)}" if result.at_bound else "")
+              + f"; {cost_line(c)}", "", *quantity_rows(table, "fitted")]
     return "\n".join(lines) + "\n"
 
 
@@ -90,9 +102,9 @@ def prediction_table(plan, design, fitted: dict):
     return table
 
 
-def prediction_markdown(table, fitted: dict) -> str:
+def prediction_markdown(table, fitted: dict, c: dict) -> str:
     values = ", ".join(f"{k} = {p['value']:.4g} ± {p['std']:.2g}" for k, p in fitted["parameters"].items())
-    lines = [f"The fitted model ({values}) at the operating points of the prediction.", "",
+    lines = [f"The fitted model ({values}) at the operating points of the prediction; {cost_line(c)}.", "",
              *quantity_rows(table, "predicted")]
     return "\n".join(lines) + "\n"
 
@@ -113,7 +125,7 @@ def main(smk) -> None:
         table = prediction_table(plan, design, fitted)
         write_table(table, smk.output.table)
         with open(smk.output.md, "w") as f:
-            f.write(prediction_markdown(table, fitted))
+            f.write(prediction_markdown(table, fitted, cost(design)))
         from analysis.plots import measured_against_fitted
 
         measured_against_fitted(table, what="predicted").savefig(smk.output.png, dpi=150)
@@ -136,14 +148,14 @@ def main(smk) -> None:
     table = cal.fitted_table(goal, plan.bounds, result)
     out = result.as_dict()
     out.update({"covariance": result.covariance.tolist(), "keys": list(result.keys),
-                "measurements": plan.section["measurements"], "cases": len(design),
+                "measurements": plan.section["measurements"], **cost(design),
                 "same_as": dict(plan.section.get("same_as") or {})})
     write_json(out, smk.output.fitted)
     with open(smk.output.overlay, "w") as f:
         f.write(overlay_yaml(result.keys, result.values, result.std, out["same_as"], plan.section["measurements"]))
     write_table(table, smk.output.table)
     with open(smk.output.md, "w") as f:
-        f.write(markdown(table, result, result.keys))
+        f.write(markdown(table, result, result.keys, cost(design)))
     from analysis.plots import calibration_misfit, measured_against_fitted
 
     first, second, chi2 = cal.misfit_grid(goal, plan.bounds, result)

@@ -200,8 +200,8 @@ class CalibrationPlan:
 
 
 def design_table(summaries: Mapping[str, Mapping], plan: CalibrationPlan) -> pd.DataFrame:
-    """One row per simulated case: label, point, the fitted keys' values and the summary's
-    quantities with their standard errors (NaN where the summary has none)."""
+    """One row per simulated case: label, point, the fitted keys' values, the summary's quantities
+    with their standard errors (NaN where the summary has none) and the case's CPU seconds."""
     rows = []
     for path, s in summaries.items():
         label, point = Path(path).parent.name, Path(path).stem
@@ -211,5 +211,6 @@ def design_table(summaries: Mapping[str, Mapping], plan: CalibrationPlan) -> pd.
                 value = s.get(name)
                 row[name] = math.nan if value is None else float(value)
         row["regime"] = s.get("regime", "")
+        row["cpu_time_s"] = math.nan if s.get("cpu_time_s") is None else float(s["cpu_time_s"])
         rows.append(row)
     return pd.DataFrame(rows)
