@@ -83,6 +83,11 @@ def test_calibration_recovers_the_viscosity_and_friction_it_was_measured_at(tmp_
     for png in ("misfit.png", "measured_vs_fitted.png"):
         assert imread(out / png).ndim == 3
     assert np.isfinite(fitted["chi2"])
+    # the committed copy: calibration_reference copies the fit without running anything
+    copy = snakemake("calibration_reference", "--cores", "1", "--configfile", "recovery.yaml", cwd=work)
+    assert copy.returncode == 0, copy.stderr[-3000:]
+    for name in ("fitted.json", "fitted.yaml", "table.md", "misfit.png"):
+        assert (work / "docs/reference/calibration" / name).read_bytes() == (out / name).read_bytes()
 
 
 def test_calibration_needs_its_config_and_refuses_a_bad_measurement_file_before_any_job(tmp_path):

@@ -6,6 +6,11 @@
 
 from calibration_plan import CalibrationPlan, root as calibration_root  # noqa: E402
 
+# what the reference rules copy to docs/reference/calibration/ for committing
+CALIBRATION_REFERENCE = ["fitted.json", "fitted.yaml", "table.csv", "table.md", "misfit.png",
+                         "measured_vs_fitted.png"]
+PREDICTION_REFERENCE = ["table.csv", "table.md", "predicted.png"]
+
 if config.get("calibration"):
     try:
         CAL = CalibrationPlan(config["calibration"])
@@ -112,6 +117,16 @@ if config.get("calibration"):
         script:
             "../scripts/calibration.py"
 
+    rule calibration_reference:
+        """Copy the fit (values, overlay, table, figures) to docs/reference/calibration/, for
+        committing. Not part of `calibration`: `snakemake -j1 calibration_reference` after it."""
+        input:
+            [f"{CAL_ROOT}/{name}" for name in CALIBRATION_REFERENCE],
+        output:
+            [f"docs/reference/calibration/{name}" for name in CALIBRATION_REFERENCE],
+        shell:
+            "cp {input} docs/reference/calibration/"
+
     if config.get("prediction"):
         try:
             PRED = CalibrationPlan(config["calibration"], config["prediction"])
@@ -186,6 +201,16 @@ if config.get("calibration"):
                 mem_mb=1000,
             script:
                 "../scripts/calibration.py"
+
+        rule prediction_reference:
+            """Copy the prediction (table, figure) to docs/reference/calibration/prediction/, for
+            committing: `snakemake -j1 prediction_reference` after `prediction`."""
+            input:
+                [f"{PRED.folder}/{name}" for name in PREDICTION_REFERENCE],
+            output:
+                [f"docs/reference/calibration/prediction/{name}" for name in PREDICTION_REFERENCE],
+            shell:
+                "cp {input} docs/reference/calibration/prediction/"
 
 if not config.get("calibration"):
 
