@@ -6,11 +6,6 @@
 
 from calibration_plan import CalibrationPlan, root as calibration_root  # noqa: E402
 
-# what the reference rules copy to docs/reference/calibration/ for committing
-CALIBRATION_REFERENCE = ["fitted.json", "fitted.yaml", "table.csv", "table.md", "misfit.png",
-                         "measured_vs_fitted.png"]
-PREDICTION_REFERENCE = ["table.csv", "table.md", "predicted.png"]
-
 if config.get("calibration"):
     try:
         CAL = CalibrationPlan(config["calibration"])
@@ -121,9 +116,9 @@ if config.get("calibration"):
         """Copy the fit (values, overlay, table, figures) to docs/reference/calibration/, for
         committing. Not part of `calibration`: `snakemake -j1 calibration_reference` after it."""
         input:
-            [f"{CAL_ROOT}/{name}" for name in CALIBRATION_REFERENCE],
+            rules.calibration.output,
         output:
-            [f"docs/reference/calibration/{name}" for name in CALIBRATION_REFERENCE],
+            [f"docs/reference/calibration/{Path(f).name}" for f in rules.calibration.output],
         shell:
             "cp {input} docs/reference/calibration/"
 
@@ -206,9 +201,9 @@ if config.get("calibration"):
             """Copy the prediction (table, figure) to docs/reference/calibration/prediction/, for
             committing: `snakemake -j1 prediction_reference` after `prediction`."""
             input:
-                [f"{PRED.folder}/{name}" for name in PREDICTION_REFERENCE],
+                rules.prediction.output,
             output:
-                [f"docs/reference/calibration/prediction/{name}" for name in PREDICTION_REFERENCE],
+                [f"docs/reference/calibration/prediction/{Path(f).name}" for f in rules.prediction.output],
             shell:
                 "cp {input} docs/reference/calibration/prediction/"
 
