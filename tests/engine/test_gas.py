@@ -367,15 +367,20 @@ def random_bed(f, rng, stratified=False):
     f.set_solid_fraction(sf, velocity=(0.0, 0.0, 0.0))
 
 
+def random_bed_with_sources(nodes, theta, scheme, seed):
+    """A field on a random bed with a non-zero div u source, and a random pressure P' (Pa)."""
+    rng = np.random.default_rng(seed)
+    f = field(nodes=nodes, theta=theta, scheme=scheme)
+    random_bed(f, rng)
+    f.deposit(uniform_points(500, rng), rng.normal(size=(500, 3)))
+    return f, rng.normal(size=nodes) * 10
+
+
 @pytest.mark.parametrize("nodes", [(150, 2, 2), (12, 3, 4), (6, 12, 12)])
 @pytest.mark.parametrize("theta", [1.0, 0.5])
 def test_step_equals_a_direct_sparse_solve(nodes, theta):
-    rng = np.random.default_rng(3)
     # unsplit: the reference is the theta step of the whole 3-D operator, which only it solves
-    f = field(nodes=nodes, theta=theta, scheme="unsplit")
-    random_bed(f, rng)
-    f.deposit(uniform_points(500, rng), rng.normal(size=(500, 3)))  # non-zero div u source
-    p_old = rng.normal(size=nodes) * 10
+    f, p_old = random_bed_with_sources(nodes, theta, "unsplit", seed=3)
     op, cap = operator(f)
     dt = 1e-4
     active = cap > 0
@@ -394,11 +399,7 @@ def test_step_equals_a_direct_sparse_solve(nodes, theta):
 def test_split_step_equals_three_direct_sparse_solves(nodes, theta):
     """The papers' scheme: a theta-step of the x operator with the sources and the outlet, then one
     of the y operator, then one of the z operator (Lie splitting), each a sparse direct solve."""
-    rng = np.random.default_rng(5)
-    f = field(nodes=nodes, theta=theta, scheme="split")
-    random_bed(f, rng)
-    f.deposit(uniform_points(500, rng), rng.normal(size=(500, 3)))  # non-zero div u source
-    p_old = rng.normal(size=nodes) * 10
+    f, p_old = random_bed_with_sources(nodes, theta, "split", seed=5)
     _, cap = operator(f)
     active = cap > 0
     dt = 1e-4
