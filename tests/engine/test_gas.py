@@ -390,7 +390,8 @@ def test_step_equals_a_direct_sparse_solve(nodes, theta):
     ref[active] = spla.spsolve(a, rhs[active])
     f.pressure[:] = p_old
     f.step(dt)
-    # both are direct solves of the same system; condition number ~ diffusion number ~1e4
+    # both are direct solves of the same system: measured <= 1.8e-11 relative at diffusion numbers
+    # of 1.4e7 to 4.8e9 (the split's separate lines lose far more, next test)
     assert np.allclose(f.pressure.ravel(), ref, rtol=0, atol=1e-10 * np.abs(ref).max())
 
 
@@ -433,7 +434,7 @@ def test_split_scheme_converges_at_first_order_where_the_dimensions_do_not_commu
     forcing = split.src.ravel()[active] / cap[active]
     p_start = rng.normal(size=active.sum()) * 10
     p_steady = -np.linalg.solve(rate, forcing)
-    t_end = 1e-6  # s: the transverse exchange's stiffest rates reach 1e13 1/s
+    t_end = 1e-6  # s: the transverse exchange's stiffest rates reach 2.4e13 1/s
     exact = sla.expm(rate * t_end) @ (p_start - p_steady) + p_steady
 
     def error(f, steps):
