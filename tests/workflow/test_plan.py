@@ -404,6 +404,43 @@ def test_a_partial_validation_reads_only_what_this_configuration_produced(tmp_pa
     assert item["files"] == {} and "was run with other parameters" in item["pending"]
 
 
+def test_a_partial_validation_dates_a_cases_summary_against_that_case_alone(tmp_path, monkeypatch):
+    """A statement on two cases (a ratio): each summary counts when it is newer than its own case
+    file, even when the other case finished after it; a summary older than its own case does not."""
+    import os
+
+    import netCDF4
+
+    monkeypatch.chdir(tmp_path)
+    statements = [{"id": "R", "measure": "ratio",
+                   "cases": [{"sweep": "h_vs", "point": {"gas.superficial_velocity": 2.0}},
+                             {"sweep": "h_vs", "point": {"gas.superficial_velocity": 1.0}}]}]
+    sweeps = {"h_vs": curve([1.0, 2.0])}
+    plan = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}), statements)
+    stamp = 1.0e9
+    for v in ("2", "1"):  # case 2, its summary, then case 1 (newer than summary 2), its summary
+        key = ("h_vs", f"gas.superficial_velocity~{v}")
+        case, summary = Path(paths.case_file(*key)), Path(paths.summary_json(*key))
+        for path in (case, summary):
+            path.parent.mkdir(parents=True, exist_ok=True)
+        with netCDF4.Dataset(case, "w") as ds:
+            ds.setncattr("config_yaml", plan.cases[key].to_yaml())
+        summary.write_text("{}")
+        os.utime(case, (stamp, stamp))
+        os.utime(summary, (stamp + 1, stamp + 1))
+        stamp += 10
+
+    def pending():
+        fresh = Plan(config(sweeps, validation={"statements": "s.yaml", "partial": True}), statements)
+        [item] = fresh.validation_statements()
+        return item["pending"]
+
+    assert pending() is False
+    older = paths.summary_json("h_vs", "gas.superficial_velocity~2")
+    os.utime(older, (1.0e9 - 1, 1.0e9 - 1))
+    assert pending() == f"{older} is older than its case file"
+
+
 def test_a_key_added_after_a_case_ran_counts_at_its_default(tmp_path, monkeypatch):
     """A case file written before a key existed records the planned case when the plan leaves
     that key at its default; set to another value, the key is a difference."""

@@ -77,6 +77,14 @@ def curve_csv(sweep: str) -> str:
     return f"results/curves/{sweep}.csv"
 
 
+def derives_from_one_case(path: str, sweep: str, point: str) -> bool:
+    """Whether `path` is a product of the case (sweep, point) alone: its slugs, summary, statistics,
+    profile, profile selection or a snapshot product."""
+    own = {slugs_csv(sweep, point), summary_json(sweep, point), statistics_csv(sweep, point),
+           profile_nc(sweep, point), selection_csv(sweep, point)}
+    return path in own or path.startswith(f"results/snapshots/{sweep}/{point}/")
+
+
 def curve_png(sweep: str) -> str:
     return f"results/curves/{sweep}.png"
 
@@ -532,17 +540,19 @@ class Plan:
     def not_current(self, files: list[str], sources: list[Key]) -> str | None:
         """Why `files` (derived from the cases `sources`) are not this configuration's products yet:
         a file is missing, a case file is missing or from other parameters, or a file is older than
-        a case file it derives from. None when they are current."""
+        a case file it derives from (a product of one case its own case's, any other every source's).
+        None when they are current."""
         for key in sources:
             if why := self.case_status(key):
                 return why
         for f in files:
             if not Path(f).is_file():
                 return f"{f} is not produced"
-        newest_case = max((Path(self.case_nc(*k)).stat().st_mtime for k in sources), default=0.0)
         for f in files:
             if f.endswith(".nc") and f.startswith("results/cases/"):
                 continue
+            own = [k for k in sources if derives_from_one_case(f, *k)]
+            newest_case = max((Path(self.case_nc(*k)).stat().st_mtime for k in own or sources), default=0.0)
             if Path(f).stat().st_mtime < newest_case:
                 return f"{f} is older than its case file"
         return None
