@@ -77,20 +77,20 @@ def curve_csv(sweep: str) -> str:
     return f"results/curves/{sweep}.csv"
 
 
-def derives_from_one_case(path: str, sweep: str, point: str) -> bool:
-    """Whether `path` is a product of the case (sweep, point) alone: its slugs, summary, statistics,
-    profile, profile selection or a snapshot product."""
-    own = {slugs_csv(sweep, point), summary_json(sweep, point), statistics_csv(sweep, point),
-           profile_nc(sweep, point), selection_csv(sweep, point)}
-    return path in own or path.startswith(f"results/snapshots/{sweep}/{point}/")
-
-
 def curve_png(sweep: str) -> str:
     return f"results/curves/{sweep}.png"
 
 
 def figure_files(fig: str) -> list[str]:
     return [f"results/figures/{fig}.{ext}" for ext in ("png", "pdf", "txt")]
+
+
+def derives_from_one_case(path: str, sweep: str, point: str) -> bool:
+    """Whether `path` is a product of the case (sweep, point) alone: its slugs, summary, statistics,
+    profile, profile selection or a snapshot product."""
+    own = {slugs_csv(sweep, point), summary_json(sweep, point), statistics_csv(sweep, point),
+           profile_nc(sweep, point), selection_csv(sweep, point)}
+    return path in own or path.startswith(f"results/snapshots/{sweep}/{point}/")
 
 
 VALIDATION_CSV = "results/validation/validation.csv"
