@@ -4,6 +4,7 @@
     python benchmarks/studies/run_lengths.py results/cases/*/*.nc [--fraction 0.5]
         [--statements resources/paper_statements.yaml] [--identification config/identification.yaml]
         [--position 0.26] [--csv OUT.csv] [--replay [KEY=VALUE ...]]
+    python benchmarks/studies/run_lengths.py results/cases/*/*.nc --every-case --replay KEY=VALUE ...
 
 For every case file, the statements of resources/paper_statements.yaml measured on it (by its
 sweep, the folder it is in, and the statement's point; for identification sweeps by the `compare`
@@ -35,6 +36,10 @@ run.steady_n_particles_error=25: a case whose statements ask only its grain coun
 5 frames: where it would have stopped (or that it would not within the series), and the mean
 pressure drop and grains over its window against the file's own (analysis.curves.case_summary's
 window), in the file's standard errors.
+
+--every-case replays the given keys on every case file, judged by a statement or not, and sums
+what the workflow would have cost with them (replay_cost): each run stopped by steadiness or the
+30 s cap ends at its replayed stop, its CPU seconds pro rata; the others keep theirs.
 """
 
 from __future__ import annotations
@@ -266,12 +271,13 @@ def replay_rows(paths, labels_, overrides_of) -> pd.DataFrame:
         if overrides is None:
             continue
         with xr.open_dataset(path) as ds:
+            cpu_s = run_cpu_seconds(ds.attrs)
             ds = ds[[v for v in KEEP if v in ds.variables]].load()
         own = case_summary(ds)
         length = float(ds.attrs["tube_length"])
         window = replay(ds, overrides)
         row = {"case": label, "keys": " ".join(f"{k}={v:g}" for k, v in overrides.items()),
-               "ran_to": float(ds["time"].values[-1]), "stop_reason": ds.attrs.get("stop_reason", ""),
+               "ran_to": float(ds["time"].values[-1]), "stop_reason": ds.attrs.get("stop_reason", ""), "cpu_s": cpu_s,
                "own_pressure_drop": own["pressure_drop"], "own_pressure_drop_sem": own["pressure_drop_sem"],
                "own_n_particles": own["n_particles"], "own_n_particles_sem": own["n_particles_sem"],
                "stop": math.nan, "start": math.nan, "pressure_drop": math.nan, "pressure_drop_sem": math.nan,
@@ -288,6 +294,25 @@ def replay_rows(paths, labels_, overrides_of) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def replay_cost(rows: pd.DataFrame) -> dict:
+    """What the replayed stop would cost against the recorded runs (CPU s, pro rata of each run's
+    CPU seconds by simulated time; rough, since filling costs less per second) and how many means
+    move: a run stopped by steadiness or its cap (`steady`, `max_duration`) ends at the replayed
+    stop when there is one; a fixed-duration or blocked run keeps its length."""
+    steady_run = rows["stop_reason"].isin(["steady", "max_duration"]) & rows["stop"].notna()
+    end = rows["stop"].where(steady_run, rows["ran_to"]).clip(upper=rows["ran_to"])
+    moved = ((rows["pressure_drop"] - rows["own_pressure_drop"]) / rows["own_pressure_drop_sem"]).abs()
+    return {"cases": len(rows), "stopped_earlier": int((steady_run & (end < rows["ran_to"])).sum()),
+            "cpu_s": float(rows["cpu_s"].sum()), "cpu_s_replayed": float((rows["cpu_s"] * end / rows["ran_to"]).sum()),
+            "moved_over_1_se": int((steady_run & (moved > 1)).sum()),
+            "moved_over_2_se": int((steady_run & (moved > 2)).sum())}
+
+
+def _in_errors(value: float, own: float, error: float) -> float:
+    """(value - own) / error; NaN for a series without scatter (error 0)."""
+    return (value - own) / error if error > 0 else math.nan
+
+
 def replay_markdown(rows: pd.DataFrame) -> str:
     lines = ["| case | keys | stop (s) | pressure drop (hPa/m) | against the file's (s.e.) | grains | "
              "against the file's (s.e.) |", "|---|---|---|---|---|---|---|"]
@@ -296,13 +321,26 @@ def replay_markdown(rows: pd.DataFrame) -> str:
             lines.append(f"| {r['case']} | {r['keys']} | not steady by {r['ran_to']:.1f} ({r['stop_reason']}) "
                          "| – | – | – | – |")
             continue
-        dp = (r["pressure_drop"] - r["own_pressure_drop"]) / r["own_pressure_drop_sem"]
-        n = (r["n_particles"] - r["own_n_particles"]) / r["own_n_particles_sem"]
+        dp = _in_errors(r["pressure_drop"], r["own_pressure_drop"], r["own_pressure_drop_sem"])
+        n = _in_errors(r["n_particles"], r["own_n_particles"], r["own_n_particles_sem"])
         lines.append(f"| {r['case']} | {r['keys']} | {r['stop']:.2f} (window from {r['start']:.2f}; ran "
                      f"{r['ran_to']:.1f}, {r['stop_reason']}) | {r['pressure_drop'] / 100:.2f} ± "
                      f"{r['pressure_drop_sem'] / 100:.2f} | {dp:+.1f} | {r['n_particles']:.0f} ± "
                      f"{r['n_particles_sem']:.0f} | {n:+.1f} |")
     return "\n".join(lines)
+
+
+def every_case(paths, overrides: dict) -> None:
+    """Print the replayed stop with `overrides` on every case file and its cost (replay_cost)."""
+    paths = [Path(p) for p in paths]
+    rows = replay_rows(paths, [f"{p.parent.name}/{p.stem}" for p in paths], lambda case: overrides)
+    print(f"the engine's steady stop replayed on the recorded series (checked every {EVERY} frames):\n")
+    print(replay_markdown(rows))
+    c = replay_cost(rows)
+    print(f"\n{c['cases']} cases, {c['stopped_earlier']} stopped earlier: {c['cpu_s']:.0f} CPU s recorded, "
+          f"{c['cpu_s_replayed']:.0f} replayed ({c['cpu_s_replayed'] / c['cpu_s']:.2f}x); of the runs stopped by "
+          f"steadiness or the cap, {c['moved_over_1_se']} pressure drops move by more than 1 standard error, "
+          f"{c['moved_over_2_se']} by more than 2")
 
 
 def main(argv=None) -> None:
@@ -319,7 +357,15 @@ def main(argv=None) -> None:
     parser.add_argument("--replay", nargs="*", metavar="KEY=VALUE",
                         help="replay the engine's steady stop with these keys (none: each case's "
                              "statement keys)")
+    parser.add_argument("--every-case", action="store_true",
+                        help="with --replay KEY=VALUE: replay on every case file given, judged by a "
+                             "statement or not, and print the cost against the recorded runs")
     args = parser.parse_args(argv)
+    if args.every_case:
+        if not args.replay:
+            parser.error("--every-case needs the keys to replay: --replay KEY=VALUE ...")
+        every_case(args.cases, dict(parse_override(text) for text in args.replay))
+        return
     statements = yaml.safe_load(Path(args.statements).read_text())
     compare = []
     if args.identification and Path(args.identification).is_file():

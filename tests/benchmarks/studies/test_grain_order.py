@@ -1,19 +1,11 @@
 """benchmarks/studies/grain_order.py: a permutation of the grain rows keeps the physics (a few seconds)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from engine import Case, Simulation
-from engine.bench import stack_layers
-from engine.feed import layer_template
-
 from .. import load_benchmark
+from . import small_conveying_simulation
 
-ROOT = Path(__file__).resolve().parents[3]
-# a short conveying tube: feed grains, gas drag and the implicit spin kick all present
-SMALL = ["tube.length=0.04", "gas.nodes_x=12", "feed.mass_flow_kg_h=9.95", "feed.entry_velocity=0.16"]
 # the per-grain arrays that the physics reads (wall_normal and the rebuild's scratch rows are
 # rewritten before they are read; test_permute_moves_every_per_grain_row covers them)
 PHYSICAL = ["_pos", "_vel", "_omg", "_force", "_torque", "_drag", "_viscous_damping", "_gid", "_in_feed", "_pos_ref"]
@@ -26,12 +18,7 @@ def grain_order():
 
 @pytest.fixture(scope="module")
 def sim(grain_order):
-    sim = Simulation(Case.from_yaml(ROOT / "config/cases/horizontal.yaml", SMALL))
-    d = sim.case["particles.diameter"]
-    xs = np.arange(d, 0.04 - d, 1.02 * d)
-    template = layer_template(sim.case["tube.diameter"] / 2, d)
-    sim.add_particles(stack_layers(xs, (xs > 0.015) & (xs < 0.025), template, 7, d, np.random.default_rng(0)))
-    sim.advance(0.01)
+    sim = small_conveying_simulation()
     grain_order.ready(sim, 10)
     sim._prepare()  # a fresh list: the next step does not rebuild it
     n = int(sim._n[0])

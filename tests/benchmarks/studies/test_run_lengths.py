@@ -4,6 +4,7 @@ and the engine's stop replayed with the keys that ask it (synthetic cases)."""
 import math
 
 import pytest
+import xarray as xr
 
 from analysis.runlength import Precision
 from tests.analysis import synthetic
@@ -112,3 +113,35 @@ def test_the_replayed_stop_waits_for_the_precision_asked(rl, tmp_path):
     assert rl.replay(ds, {"run.steady_pressure_drop_error": 5.0}) is None
     rows = rl.replay_rows([path], ["h_default"], lambda case: {"run.steady_pressure_drop_error": 5.0})
     assert math.isnan(rows["stop"].iloc[0]) and "not steady by 30.0" in rl.replay_markdown(rows)
+
+
+def test_every_case_replays_the_stop_and_costs_it_pro_rata(rl, tmp_path, capsys):
+    # two 30 s runs of the same series (no slugs): one capped by max_duration, one of fixed duration
+    paths = []
+    for sweep, reason in (("h_viscosity", "max_duration"), ("h_default", "duration")):
+        path = write_case(tmp_path, sweep=sweep, duration=30.0, slugs=False,
+                          **{"run.steady_min_window": 2.0, "run.steady_settle": 5.0})
+        with xr.open_dataset(path) as ds:
+            ds = ds.load()
+        ds.attrs.update(stop_reason=reason, cpu_time_total_s=600.0)
+        path.unlink()
+        synthetic.write(ds, path)
+        paths.append(path)
+    rows = rl.replay_rows(paths, ["capped", "fixed"], lambda case: {"run.steady_pressure_drop_error": 8.0})
+    assert list(rows["cpu_s"]) == [600.0, 600.0]
+    stop = rows["stop"].iloc[0]
+    assert 7.0 + 0.7 * 14 <= stop <= 7.0 + 1.3 * 14  # as in the test above: 14 s of window from 7 s
+    cost = rl.replay_cost(rows)
+    # the capped run ends at its replayed stop, the fixed-duration run keeps its 30 s
+    assert cost["cases"] == 2 and cost["stopped_earlier"] == 1
+    ran = rows["ran_to"].iloc[0]  # the last frame's time
+    assert cost["cpu_s"] == 1200.0 and cost["cpu_s_replayed"] == pytest.approx(600.0 * stop / ran + 600.0)
+    assert cost["moved_over_2_se"] <= cost["moved_over_1_se"] <= 1
+    # a tolerance no window reaches: nothing stops earlier, nothing is saved
+    never = rl.replay_cost(rl.replay_rows(paths, ["capped", "fixed"], lambda case: {"run.steady_pressure_drop_error": 1.0}))
+    assert never["stopped_earlier"] == 0 and never["cpu_s_replayed"] == 1200.0
+    rl.main([str(p) for p in paths] + ["--every-case", "--replay", "run.steady_pressure_drop_error=8"])
+    out = capsys.readouterr().out
+    assert "h_viscosity/base" in out and "2 cases, 1 stopped earlier: 1200 CPU s recorded" in out
+    with pytest.raises(SystemExit):
+        rl.main([str(paths[0]), "--every-case"])

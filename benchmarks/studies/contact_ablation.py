@@ -1,0 +1,247 @@
+#!/usr/bin/env python
+"""Where the one-thread contact loop's time goes: the loop timed against copies of itself with
+parts cut out or rewritten.
+
+    python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json]
+
+Each variant is the engine's single loop (`_contacts_range_with` in engine/kernels/contacts.py,
+without the optional terms) compiled from its source with one edit, so that it measures the
+loop as it is; an edit whose anchor is no longer in the source stops the study with its name.
+On the settled standard packing of `plugsim bench` (engine.bench.settled_simulation), called from
+compiled code, interleaved (each round every variant once; CPU time of the process), ns per
+touching contact (grain pairs and wall contacts):
+
+  engine          the loop as it is;
+  distance_only   the list entries' distance tests alone (no law, no walls): the loop's skeleton;
+  no_walls        the pairs in full, the cylinder and inlet contacts cut out;
+  normal_only     up to the normal force of each pair (its square root and division), no
+                  tangential law, no scatter; walls in full;
+  no_scatter      the pairs' law in full, the reactions on the partner j not stored;
+  compacted       per grain, the touching entries compacted first (offsets and distances to
+                  small work arrays, branch-free), then the law over them (bits unchanged);
+  signed_index    the partner index as a signed integer, as numba indexes it by default (the
+                  wrap-around of negative indices at every load and store; bits unchanged);
+  viscous_select  the tangential law's branch chosen on squares, gamma_t^2 |v_t|^2 < (mu F_n)^2,
+                  so that a contact in the viscous branch takes no square root and no division
+                  (the same law; the forces differ in the last bits).
+
+The variants that keep the bits are checked to give the engine's forces, torques and damping sums
+bit for bit; the others report their largest force difference. The cost splits are differences
+of these times; docs/performance.md, "The contact kernel", quotes them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import time
+import types
+from pathlib import Path
+
+import numba as nb
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from engine.bench import contact_count, settled_simulation  # noqa: E402
+from engine.kernels import contacts, laws  # noqa: E402
+
+SOURCE = Path(contacts.__file__)
+LAWS = Path(laws.__file__)
+
+DISTANCE = """                touching += 1
+                dist = math.sqrt(dist2)"""
+WALLS = "            if not in_feed[i]:\n                rho2"
+NORMAL = """                if fn <= 0.0:
+                    continue
+                fx, fy, fz"""
+SCATTER_J = "                if j < end:\n                    force[j, 0] -= fx"
+SCATTER_SPILL = "                else:\n                    spill_force[j, 0] -= fx"
+LIST_LOOP = """            for k in range(nbr_start[i], nbr_start[i + 1]):
+                j = nb.uint64(nbr[k])
+                dx = pos[j, 0] - xi
+                dy = pos[j, 1] - yi
+                dz = pos[j, 2] - zi
+                dist2 = dx * dx + dy * dy + dz * dz
+                if dist2 >= dia * dia:
+                    continue
+                touching += 1
+"""
+COMPACTED = """            m = 0
+            for k in range(nbr_start[i], nbr_start[i + 1]):
+                j = nb.uint64(nbr[k])
+                dx = pos[j, 0] - xi
+                dy = pos[j, 1] - yi
+                dz = pos[j, 2] - zi
+                dist2 = dx * dx + dy * dy + dz * dz
+                bj[m] = j
+                bx[m] = dx
+                by[m] = dy
+                bz[m] = dz
+                b2[m] = dist2
+                m += not (dist2 >= dia * dia)
+            touching += m
+            for t in range(m):
+                j = bj[t]
+                dx = bx[t]
+                dy = by[t]
+                dz = bz[t]
+                dist2 = b2[t]
+"""
+WORK_ARRAYS_AT = "        implicit = p.implicit_spin > 0.0  # viscous_damping is only read (and summed) then\n"
+WORK_ARRAYS = WORK_ARRAYS_AT + """        longest = 1
+        for i in range(lo, hi):
+            longest = max(longest, nbr_start[i + 1] - nbr_start[i])
+        bj = np.empty(longest, dtype=np.uint64)
+        bx = np.empty(longest)
+        by = np.empty(longest)
+        bz = np.empty(longest)
+        b2 = np.empty(longest)
+"""
+TANGENTIAL_TAIL = """    if vt <= 0.0:
+        return 0.0, 0.0, 0.0, gt
+    fv = gt * vt
+    fc = friction * fn
+    ft = min(fc, fv)
+    s = -ft / vt
+    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0"""
+VISCOUS_SELECT = """    vt2 = vtx * vtx + vty * vty + vtz * vtz
+    fc = friction * fn
+    if gt * gt * vt2 < fc * fc or vt2 == 0.0:  # the viscous branch gt |v_t| < mu F_n (or no slip)
+        return -gt * vtx, -gt * vty, -gt * vtz, gt
+    s = -fc / math.sqrt(vt2)
+    return s * vtx, s * vty, s * vtz, 0.0"""
+TANGENTIAL_SQRT = "    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n    if branchless:\n"
+
+# name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
+VARIANTS = {
+    "distance_only": ([(DISTANCE, "                touching += 1\n                fxi += dist2\n                continue\n"
+                                  "                dist = math.sqrt(dist2)"),
+                       (WALLS, "            if in_feed[i] > 1:\n                rho2")], [], False),
+    "no_walls": ([(WALLS, "            if in_feed[i] > 1:\n                rho2")], [], False),
+    "normal_only": ([(NORMAL, "                if fn <= 0.0:\n                    continue\n                fxi += fn * nx\n"
+                              "                fyi += fn * ny\n                fzi += fn * nz\n                continue\n"
+                              "                fx, fy, fz")], [], False),
+    "no_scatter": ([(SCATTER_J, "                if j < 0:\n                    force[j, 0] -= fx"),
+                    (SCATTER_SPILL, "                elif j < -1:\n                    spill_force[j, 0] -= fx")], [], False),
+    "compacted": ([(LIST_LOOP, COMPACTED), (WORK_ARRAYS_AT, WORK_ARRAYS)], [], True),
+    "signed_index": ([("                j = nb.uint64(nbr[k])\n", "                j = nbr[k]\n"),
+                      ("                if j < end:\n", "                if j < hi:\n"),
+                      ("                    top = max(top, nb.int64(j) + 1)\n", "                    top = max(top, j + 1)\n")],
+                     [], True),
+    "viscous_select": ([], [(TANGENTIAL_TAIL, VISCOUS_SELECT),
+                            (TANGENTIAL_SQRT, "    if branchless:\n        vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n")],
+                       False),
+}
+
+
+def _edited(text: str, edits, name: str, where: Path) -> str:
+    for old, new in edits:
+        if old not in text:
+            raise SystemExit(f"variant {name}: its anchor is no longer in {where}:\n{old}")
+        text = text.replace(old, new, 1)
+    return text
+
+
+def sources(name: str) -> tuple[str, str]:
+    """The sources of laws.py and of the single loop's factory with variant `name`'s edits
+    ("engine": none); SystemExit naming the variant when an anchor is missing."""
+    loop_edits, law_edits, _ = VARIANTS.get(name, ([], [], True))
+    law_source = _edited(LAWS.read_text(), law_edits, name, LAWS)
+    source = SOURCE.read_text()
+    start = source.index("def _contacts_range_with(optional):")
+    end = source.index("_contacts_range_plain = _contacts_range_with(False)")
+    return law_source, _edited(source[start:end], loop_edits, name, SOURCE)
+
+
+def build(name: str):
+    """The single loop without optional terms, compiled from sources(name) (uncached)."""
+    law_source, loop_source = sources(name)
+    law_module = types.ModuleType(f"ablation_laws_{name}")
+    exec(compile(law_source.replace("cache=True", "cache=False"), f"<laws {name}>", "exec"), law_module.__dict__)
+    namespace = {"math": math, "nb": nb, "np": np, "laws": law_module, "FASTMATH": laws.FASTMATH}
+    exec(compile(loop_source.replace("cache=True", "cache=False"), f"<contacts {name}>", "exec"), namespace)
+    return namespace["_contacts_range_with"](False)
+
+
+def forces_of(loop, loop_arguments) -> tuple:
+    """What `loop` returns and the forces, torques and viscous-damping sums it leaves in the grains."""
+    result = loop(*loop_arguments)
+    hi, grains = loop_arguments[1], loop_arguments[2]
+    return result, grains.force[:hi].copy(), grains.torque[:hi].copy(), grains.viscous_damping[:hi].copy()
+
+
+def compare(state: tuple, reference: tuple) -> dict:
+    """Whether forces_of states agree bit for bit, and their largest force difference (N)."""
+    identical = state[0] == reference[0] and all(np.array_equal(a, b) for a, b in zip(state[1:], reference[1:]))
+    return {"bit_identical": bool(identical), "max_force_difference_N": float(np.abs(state[1] - reference[1]).max())}
+
+
+def _caller(loop):
+    @nb.njit
+    def run(calls, grains, n, nbr_start, nbr, p, force, torque, damping, counts):
+        for _ in range(calls):
+            loop(0, n, grains, nbr_start, nbr, p, force, torque, damping, counts)
+    return run
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--calls", type=int, default=300, help="calls per timed run (default 300)")
+    parser.add_argument("--repeats", type=int, default=7, help="interleaved rounds (default 7)")
+    parser.add_argument("--json", type=Path, help="write the figures here")
+    args = parser.parse_args(argv)
+    if args.calls < 1 or args.repeats < 1:
+        parser.error("--calls and --repeats must be at least 1")
+
+    sim = settled_simulation()
+    n, p, grains = sim.n_particles, sim._p, sim._grains()
+    nbr_start, nbr = sim._nbr_start, sim._nbr
+    arguments = (grains, n, nbr_start, nbr, p, grains.force, grains.torque, grains.viscous_damping, nbr_start[:0])
+    loop_arguments = (0, n, grains, nbr_start, nbr, p, *arguments[5:])  # lo, hi, then as the caller's
+    counted = contact_count(sim)
+    touching = counted["pairs"] + counted["walls"]
+    names = ["engine", *VARIANTS]
+    loops = {name: build(name) for name in names}
+
+    reference = forces_of(loops["engine"], loop_arguments)
+    if not compare(forces_of(contacts._contacts_range_plain, loop_arguments), reference)["bit_identical"]:
+        raise SystemExit("the loop compiled from the source does not give the engine's bits")
+    same = {}
+    for name in VARIANTS:
+        same[name] = compare(forces_of(loops[name], loop_arguments), reference)
+        if VARIANTS[name][2] and not same[name]["bit_identical"]:
+            raise SystemExit(f"variant {name} should keep the engine's bits and does not")
+    loops["engine"](*loop_arguments)  # the state's forces as the engine computes them
+
+    runs = {name: _caller(loop) for name, loop in loops.items()}
+    for run in runs.values():
+        run(1, *arguments)
+    times = {name: [] for name in runs}
+    for _ in range(args.repeats):
+        for name, run in runs.items():
+            start = time.process_time()
+            run(args.calls, *arguments)
+            times[name].append((time.process_time() - start) / args.calls)
+    print(f"standard packing: {n} grains, {counted['pairs']} touching pairs, {counted['walls']} wall contacts, "
+          f"{counted['list_entries']} list entries; medians of {args.repeats} rounds of {args.calls} calls")
+    out = {"contacts": counted, "variants": {}}
+    for name, t in times.items():
+        ratios = [a / b for a, b in zip(times["engine"], t)]
+        row = {"us_per_call": 1e6 * statistics.median(t), "ns_per_contact": 1e9 * statistics.median(t) / touching,
+               "speedup": statistics.median(ratios), "speedup_range": [min(ratios), max(ratios)], **same.get(name, {})}
+        out["variants"][name] = row
+        bits = "" if name == "engine" else (" same bits" if row["bit_identical"] else
+                                            f" forces differ by up to {row['max_force_difference_N']:.1e} N")
+        print(f"  {name:15s} {row['us_per_call']:7.1f} us/call  {row['ns_per_contact']:5.1f} ns/contact  "
+              f"engine/variant {row['speedup']:.3f} ({min(ratios):.3f}-{max(ratios):.3f}){bits}")
+    if args.json:
+        args.json.write_text(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,44 @@
+"""benchmarks/studies/contact_ablation.py: its variants still apply to the engine's loop, and the
+ones said to keep the bits do (three loops compiled, about 15 s)."""
+
+import numpy as np
+import pytest
+
+from engine.kernels import contacts
+
+from .. import load_benchmark
+from . import small_conveying_simulation
+
+
+@pytest.fixture(scope="module")
+def ablation():
+    return load_benchmark("studies/contact_ablation")
+
+
+@pytest.fixture(scope="module")
+def loop_arguments():
+    sim = small_conveying_simulation()
+    n, grains = sim.n_particles, sim._grains()
+    assert (grains.in_feed[:n] == 1).any() and np.abs(grains.omg[:n]).max() > 0
+    return (0, n, grains, sim._nbr_start, sim._nbr, sim._p, grains.force, grains.torque, grains.viscous_damping,
+            sim._nbr_start[:0])
+
+
+def test_every_variant_finds_its_anchors_in_the_engine_source(ablation):
+    for name in ["engine", *ablation.VARIANTS]:
+        law_source, loop_source = ablation.sources(name)
+        assert "def _contacts_range_with(optional):" in loop_source
+        assert (law_source, loop_source) != ablation.sources("engine") or name == "engine"
+
+
+def test_the_variants_said_to_keep_the_bits_keep_them_and_the_rewritten_law_is_the_same_law(ablation, loop_arguments):
+    engine = ablation.forces_of(contacts._contacts_range_plain, loop_arguments)
+    assert np.abs(engine[1]).max() > 0
+    for name in ("compacted", "signed_index"):
+        assert ablation.VARIANTS[name][2]
+        assert ablation.compare(ablation.forces_of(ablation.build(name), loop_arguments), engine)["bit_identical"], name
+    select = ablation.forces_of(ablation.build("viscous_select"), loop_arguments)
+    # the same law with its branch chosen on squares: only the rounding of s = -gt vt / vt differs, a few ulp
+    # of each tangential force (1e-16 relative); a wrong branch would move a force by mu F_n - gt vt
+    np.testing.assert_allclose(select[1], engine[1], rtol=0, atol=1e-12 * np.abs(engine[1]).max())
+    np.testing.assert_array_equal(select[3], engine[3])  # the same contacts in the viscous branch
