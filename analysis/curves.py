@@ -66,8 +66,9 @@ def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None) -> dict:
     The window runs from t_start (s) to the end of the run, or by default is averaging_window's: the
     same window as the run's steady stop gives the same number. Returns pressure_drop,
     pressure_drop_sem (Pa/m; NaN when the window covers fewer than the case's
-    run.steady_min_correlation_times), pressure_drop_correlation_time (s), pressure_drop_converged,
-    t_start, t_end (s) and window ("given", "run" or "fill+mser").
+    run.steady_min_correlation_times), pressure_drop_sem_estimate (Pa/m: the same estimator's error
+    over such a short window too, MeanError.estimate), pressure_drop_correlation_time (s),
+    pressure_drop_converged, t_start, t_end (s) and window ("given", "run" or "fill+mser").
     """
     require(ds, "pressure_drop")
     geo = geometry(ds)
@@ -80,7 +81,7 @@ def steady_pressure_drop(ds: xr.Dataset, t_start: float | None = None) -> dict:
     times = float(keys.get("run.steady_min_correlation_times", MIN_CORRELATION_TIMES))
     dp = np.asarray(ds["pressure_drop"].values[first:last + 1], dtype=np.float64) / geo.tube_length
     est = mean_error(dp, sampling_interval(t), times)
-    return {"pressure_drop": est.mean, "pressure_drop_sem": est.error,
+    return {"pressure_drop": est.mean, "pressure_drop_sem": est.error, "pressure_drop_sem_estimate": est.estimate,
             "pressure_drop_correlation_time": est.tau_s, "pressure_drop_converged": est.converged,
             "t_start": float(t[first]), "t_end": float(t[last]), "window": source}
 

@@ -89,6 +89,19 @@ def test_design_table_reads_values_from_names_and_quantities_from_summaries():
     assert row["label"] == "B" and row["gas.viscosity"] == 6.5e-05 and row["pressure_drop"] == 3900.0
     assert math.isnan(row["slug_velocity"]) and math.isnan(row["slug_velocity_sem"])  # no plugs passed
     assert row["cpu_time_s"] == 412.5
+    assert row["pressure_drop_sem_converged"] and not row["slug_velocity_sem_converged"]
+
+
+def test_a_value_whose_error_did_not_converge_keeps_the_estimate_and_says_so():
+    # a case capped before its window covered the correlation times the estimator asks: the
+    # summary's error is None, its estimate over the short window is there; the value must stay
+    plan = CalibrationPlan(section())
+    summaries = {f"results/calibration/t/summaries/B/{plan.start}.json":
+                 {"pressure_drop": 4568.0, "pressure_drop_sem": None, "pressure_drop_sem_estimate": 100.4,
+                  "slug_velocity": 0.198, "slug_velocity_sem": 0.0038, "regime": "plug"}}
+    row = design_table(summaries, plan).iloc[0]
+    assert row["pressure_drop"] == 4568.0 and row["pressure_drop_sem"] == 100.4
+    assert not row["pressure_drop_sem_converged"] and row["slug_velocity_sem_converged"]
 
 
 def test_cost_sums_the_known_cpu_seconds_and_counts_the_unknown():
