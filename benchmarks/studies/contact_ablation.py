@@ -2,13 +2,15 @@
 """Where the one-thread contact loop's time goes: the loop timed against copies of itself with
 parts cut out or rewritten.
 
-    python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json]
+    python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json] \
+        [--initial-state results/cases/h_default/base.nc --case config/cases/horizontal.yaml]
 
 Each variant is the engine's single loop (`_contacts_range_with` in engine/kernels/contacts.py,
 without the optional terms) compiled from its source with one edit, so that it measures the
 loop as it is; an edit whose anchor is no longer in the source stops the study with its name.
-On the settled standard packing of `plugsim bench` (engine.bench.settled_simulation), called from
-compiled code, interleaved (each round every variant once; CPU time of the process), ns per
+On the settled standard packing of `plugsim bench` (engine.bench.settled_simulation), or with
+--initial-state on a conveying state (the final grains of a case file as a warm start of --case,
+advanced 5 ms with the gas and the feed on), called from compiled code, interleaved (each round every variant once; CPU time of the process), ns per
 touching contact (grain pairs and wall contacts):
 
   engine          the loop as it is;
@@ -46,8 +48,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from engine import Case, Simulation  # noqa: E402
 from engine.bench import contact_count, settled_simulation  # noqa: E402
 from engine.kernels import contacts, laws  # noqa: E402
+from engine.run import read_initial_state  # noqa: E402
 
 SOURCE = Path(contacts.__file__)
 LAWS = Path(laws.__file__)
@@ -188,16 +192,31 @@ def _caller(loop):
     return run
 
 
+def conveying_state(case_file: Path, initial_state: Path, settle: float = 0.005) -> Simulation:
+    """The final grains of `initial_state` as a warm start of `case_file`, advanced `settle` s."""
+    case = Case.from_yaml(case_file)
+    sim = Simulation(case)
+    sim.add_particles(*read_initial_state(initial_state, case))
+    sim.advance(settle)
+    return sim
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--calls", type=int, default=300, help="calls per timed run (default 300)")
     parser.add_argument("--repeats", type=int, default=7, help="interleaved rounds (default 7)")
     parser.add_argument("--json", type=Path, help="write the figures here")
+    parser.add_argument("--initial-state", type=Path, help="a case file whose final grains are the state")
+    parser.add_argument("--case", type=Path, default=Path("config/cases/horizontal.yaml"),
+                        help="case YAML the --initial-state is a warm start of (default: the horizontal default)")
     args = parser.parse_args(argv)
     if args.calls < 1 or args.repeats < 1:
         parser.error("--calls and --repeats must be at least 1")
+    for given in ([args.initial_state, args.case] if args.initial_state else []):
+        if not given.is_file():
+            parser.error(f"{given}: no such file")
 
-    sim = settled_simulation()
+    sim = conveying_state(args.case, args.initial_state) if args.initial_state else settled_simulation()
     n, p, grains = sim.n_particles, sim._p, sim._grains()
     nbr_start, nbr = sim._nbr_start, sim._nbr
     arguments = (grains, n, nbr_start, nbr, p, grains.force, grains.torque, grains.viscous_damping, nbr_start[:0])
@@ -226,7 +245,7 @@ def main(argv=None) -> int:
             start = time.process_time()
             run(args.calls, *arguments)
             times[name].append((time.process_time() - start) / args.calls)
-    print(f"standard packing: {n} grains, {counted['pairs']} touching pairs, {counted['walls']} wall contacts, "
+    print(f"{args.initial_state or 'standard packing'}: {n} grains, {counted['pairs']} touching pairs, {counted['walls']} wall contacts, "
           f"{counted['list_entries']} list entries; medians of {args.repeats} rounds of {args.calls} calls")
     out = {"contacts": counted, "variants": {}}
     for name, t in times.items():

@@ -42,3 +42,11 @@ def test_the_variants_said_to_keep_the_bits_keep_them_and_the_rewritten_law_is_t
     # of each tangential force (1e-16 relative); a wrong branch would move a force by mu F_n - gt vt
     np.testing.assert_allclose(select[1], engine[1], rtol=0, atol=1e-12 * np.abs(engine[1]).max())
     np.testing.assert_array_equal(select[3], engine[3])  # the same contacts in the viscous branch
+
+
+def test_a_missing_initial_state_is_refused_before_any_work(ablation, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        ablation.main(["--initial-state", str(tmp_path / "none.nc")])
+    assert "none.nc: no such file" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        ablation.main(["--repeats", "0"])
