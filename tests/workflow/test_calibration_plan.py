@@ -49,6 +49,26 @@ def test_a_case_is_the_operating_point_with_the_values_its_name_carries():
     assert plan.position("B") == pytest.approx(0.2625)  # mid-tube, where the rig's camera is
 
 
+def test_a_point_at_another_mass_flow_feeds_at_the_base_cases_packing():
+    # series A and C: 1.7 and 2.88 kg/h against the base case's 2.49 kg/h at 0.04 m/s; 2.88 kg/h
+    # cannot be packed at 0.04 m/s (the feed's layers would be 0.91 d apart)
+    from engine import Case, Simulation
+
+    plan = CalibrationPlan(section(), {"measurements": str(ROOT / "resources/measurements/vertical_series_A_C.csv")})
+    assert "feed.entry_velocity" not in CalibrationPlan(section()).operating("B")  # the base's own mass flow
+    point = "gas.viscosity~6.5e-05_particles.friction~0.5"
+    for label, mass_flow in (("A", 1.7), ("C", 2.88)):
+        case = plan.case(label, point)
+        assert case["feed.mass_flow_kg_h"] == mass_flow
+        assert case["feed.entry_velocity"] == pytest.approx(0.04 * mass_flow / 2.49)
+        feed = Simulation(case).feed
+        assert feed.spacing == pytest.approx(Simulation(Case.from_yaml(V)).feed.spacing)
+    # an overridden base entry velocity is the one scaled
+    faster = CalibrationPlan(section(overrides={"feed.entry_velocity": 0.05}),
+                             {"measurements": str(ROOT / "resources/measurements/vertical_series_A_C.csv")})
+    assert faster.case("C", point)["feed.entry_velocity"] == pytest.approx(0.05 * 2.88 / 2.49)
+
+
 def test_rig_tube_length_is_simulated_without_tube_length():
     plan = CalibrationPlan(section(tube_length=None))
     assert plan.operating("B")["tube.length"] == 1.01

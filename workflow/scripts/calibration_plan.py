@@ -132,7 +132,19 @@ class CalibrationPlan:
                   INCLINATION[p["orientation"]], float(p["particle_diameter_m"]),
                   float(p["particle_density_kg_m3"]), float(p["superficial_velocity_m_s"]),
                   float(p["mass_flow_kg_h"]))
-        return dict(zip(OPERATING, values))
+        keys = dict(zip(OPERATING, values))
+        keys.update(self.feed_entry(p["orientation"], keys["feed.mass_flow_kg_h"]))
+        return keys
+
+    def feed_entry(self, orientation: str, mass_flow_kg_h: float) -> dict[str, float]:
+        """At a mass flow other than the base case's, the feed's entry velocity (m/s) scaled with
+        it, so that the feed packs its layers as the base case does (the paper configuration's
+        mass-flow points do the same); at the base case's own mass flow nothing."""
+        base = Case.from_yaml(self.base[orientation]).with_overrides(
+            list((self.section.get("overrides") or {}).items()))
+        if mass_flow_kg_h == base["feed.mass_flow_kg_h"]:
+            return {}
+        return {"feed.entry_velocity": base["feed.entry_velocity"] * mass_flow_kg_h / base["feed.mass_flow_kg_h"]}
 
     def overrides(self, label: str, point: str) -> dict[str, Any]:
         """Every override of a case: the calibration's `overrides` < the operating point < the
