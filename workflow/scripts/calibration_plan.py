@@ -61,6 +61,7 @@ class CalibrationPlan:
                                else ("calibration.measurements", self.section["measurements"]))
         self.measurements = measurements
         self.folder = root(self.name) + ("/prediction" if prediction else "")
+        self._feed_bases: dict[str, Case] = {}  # feed_entry's base cases by orientation
         try:
             self.points = read_measurements(measurements)
         except MeasurementFileError as err:
@@ -140,8 +141,10 @@ class CalibrationPlan:
         """At a mass flow other than the base case's, the feed's entry velocity (m/s) scaled with
         it, so that the feed packs its layers as the base case does (the paper configuration's
         mass-flow points do the same); at the base case's own mass flow nothing."""
-        base = Case.from_yaml(self.base[orientation]).with_overrides(
-            list((self.section.get("overrides") or {}).items()))
+        if orientation not in self._feed_bases:  # read once per base case
+            self._feed_bases[orientation] = Case.from_yaml(self.base[orientation]).with_overrides(
+                list((self.section.get("overrides") or {}).items()))
+        base = self._feed_bases[orientation]
         if mass_flow_kg_h == base["feed.mass_flow_kg_h"]:
             return {}
         return {"feed.entry_velocity": base["feed.entry_velocity"] * mass_flow_kg_h / base["feed.mass_flow_kg_h"]}
@@ -231,12 +234,11 @@ def design_table(summaries: Mapping[str, Mapping], plan: CalibrationPlan) -> pd.
         label, point = Path(path).parent.name, Path(path).stem
         row = {"label": label, "point": point, **plan.parameters(point)}
         for key in (*SUMMARY_KEYS, "n_particles"):
-            row[key], row[f"{key}_sem"], estimate = (_number(s.get(name)) for name in
-                                                     (key, f"{key}_sem", f"{key}_sem_estimate"))
-            row[f"{key}_sem_converged"] = math.isfinite(row[f"{key}_sem"])
-            if not row[f"{key}_sem_converged"] and math.isfinite(row[key]):
-                row[f"{key}_sem"] = estimate
+            value, error, estimate = (_number(s.get(name)) for name in (key, f"{key}_sem", f"{key}_sem_estimate"))
+            converged = math.isfinite(error)
+            row[key], row[f"{key}_sem_converged"] = value, converged
+            row[f"{key}_sem"] = error if converged or not math.isfinite(value) else estimate
         row["regime"] = s.get("regime", "")
-        row["cpu_time_s"] = math.nan if s.get("cpu_time_s") is None else float(s["cpu_time_s"])
+        row["cpu_time_s"] = _number(s.get("cpu_time_s"))
         rows.append(row)
     return pd.DataFrame(rows)
