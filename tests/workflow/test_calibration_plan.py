@@ -160,6 +160,15 @@ def test_prediction_cases_bracket_the_fit_and_carry_its_covariance():
     assert table.loc["pressure_drop", "predicted_std"] == pytest.approx(expected, rel=1e-6)
     # a quantity that does not change with the parameters keeps the case's own error only
     assert table.loc["plug_velocity", "predicted_std"] == pytest.approx(0.01)
+    assert table["own_error_known"].all()
+    # the case at the fitted values without an error of its own (too short a window, no estimate):
+    # the error bar is the fit's part, and the table says so
+    summaries[f"x/B/{names[0]}.json"]["pressure_drop_sem"] = None
+    table = script.prediction_table(plan, design_table(summaries, plan), fitted)
+    row = table.set_index("quantity").loc["pressure_drop"]
+    assert not row["own_error_known"] and row["predicted_std"] == pytest.approx(math.sqrt(g @ np.array(fitted["covariance"]) @ g))
+    [line] = [x for x in script.quantity_rows(table, "predicted") if "pressure_drop" in x]
+    assert "the case's own error unknown" in line
 
 
 def test_job_time_request_follows_the_workflow_cost_model():

@@ -70,15 +70,18 @@ def quantity_rows(table, model: str) -> list[str]:
     for _, r in table.iterrows():
         label, factor = TARGETS[r["quantity"]]
         unit = label[label.index("(") + 1:-1]
+        unknown = "" if r.get("own_error_known", True) else " (the fit's part only: the case's own error unknown)"
         lines.append(f"| {r['label']} | {r['quantity']} | {r['value'] * factor:.3g} ± {r['error'] * factor:.2g} {unit} "
-                     f"| {r[model] * factor:.3g} ± {r[f'{model}_std'] * factor:.2g} {unit} | {r['pull']:+.1f} |")
+                     f"| {r[model] * factor:.3g} ± {r[f'{model}_std'] * factor:.2g} {unit}{unknown} | {r['pull']:+.1f} |")
     return lines
 
 
 def prediction_table(plan, design, fitted: dict):
     """Measured against predicted at each operating point of a prediction: the case at the fitted
     values, and its error from the fit's covariance through the gradient of the cases one standard
-    deviation either side along each key, with the case's own standard error."""
+    deviation either side along each key, with the case's own standard error (`own_error_known`
+    false where the case has none: its window covers too few correlation times; the error bar then
+    carries the fit's part alone, and the table says so)."""
     import numpy as np
 
     from analysis.calibration import central_gradient, propagated_std, pull
@@ -88,7 +91,7 @@ def prediction_table(plan, design, fitted: dict):
     keys = list(plan.bounds.keys)
     rows = design.set_index(["label", "point"])
     table = targets(plan.points)
-    predicted, spread = [], []
+    predicted, spread, known = [], [], []
     for _, t in table.iterrows():
         key, at = t["summary_key"], rows.loc[t["label"]]
         centre, plus, minus = at.loc[names[0]], at.loc[names[1::2]], at.loc[names[2::2]]
@@ -96,8 +99,9 @@ def prediction_table(plan, design, fitted: dict):
                                     plus[keys].to_numpy().diagonal(), minus[keys].to_numpy().diagonal())
         own = float(centre[f"{key}_sem"])
         predicted.append(float(centre[key]))
-        spread.append(propagated_std(gradient, np.array(fitted["covariance"]), own if math.isfinite(own) else 0.0))
-    table["predicted"], table["predicted_std"] = predicted, spread
+        known.append(math.isfinite(own))
+        spread.append(propagated_std(gradient, np.array(fitted["covariance"]), own if known[-1] else 0.0))
+    table["predicted"], table["predicted_std"], table["own_error_known"] = predicted, spread, known
     table["pull"] = pull(table, "predicted")
     return table
 
