@@ -301,7 +301,8 @@ def replay_cost(rows: pd.DataFrame) -> dict:
     stop when there is one; a fixed-duration or blocked run keeps its length."""
     steady_run = rows["stop_reason"].isin(["steady", "max_duration"]) & rows["stop"].notna()
     end = rows["stop"].where(steady_run, rows["ran_to"]).clip(upper=rows["ran_to"])
-    moved = ((rows["pressure_drop"] - rows["own_pressure_drop"]) / rows["own_pressure_drop_sem"]).abs()
+    moved = rows.apply(lambda r: abs(_in_errors(r["pressure_drop"], r["own_pressure_drop"],
+                                                r["own_pressure_drop_sem"])), axis=1)
     return {"cases": len(rows), "stopped_earlier": int((steady_run & (end < rows["ran_to"])).sum()),
             "cpu_s": float(rows["cpu_s"].sum()), "cpu_s_replayed": float((rows["cpu_s"] * end / rows["ran_to"]).sum()),
             "moved_over_1_se": int((steady_run & (moved > 1)).sum()),
