@@ -26,6 +26,8 @@ touching contact (grain pairs and wall contacts):
   viscous_select  the tangential law's branch chosen on squares, gamma_t^2 |v_t|^2 < (mu F_n)^2,
                   so that a contact in the viscous branch takes no square root and no division
                   (the same law; the forces differ in the last bits).
+  single_law      a pair's law in single precision (float32) from the double offsets, velocities
+                  and spin sums, its forces and torques summed in double; the walls in double.
 
 The variants that keep the bits are checked to give the engine's forces, torques and damping sums
 bit for bit; the others report their largest force difference. The cost splits are differences
@@ -119,6 +121,61 @@ VISCOUS_SELECT = """    vt2 = vtx * vtx + vty * vty + vtz * vtz
     s = -fc / math.sqrt(vt2)
     return s * vtx, s * vty, s * vtz, 0.0"""
 TANGENTIAL_SQRT = "    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n    if branchless:\n"
+PAIR_LAW = """                dist = math.sqrt(dist2)
+                inv = 1.0 / dist
+                nx = dx * inv
+                ny = dy * inv
+                nz = dz * inv
+                delta = dia - dist
+                if in_feed[i] or in_feed[j]:
+                    max_feed = max(max_feed, delta)
+                else:
+                    max_overlap = max(max_overlap, delta)
+                vrx = vel[i, 0] - vel[j, 0]
+                vry = vel[i, 1] - vel[j, 1]
+                vrz = vel[i, 2] - vel[j, 2]
+                fn = laws.normal_force(delta, vrx * nx + vry * ny + vrz * nz, pair)
+                if fn <= 0.0:
+                    continue
+                fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
+                    fn, nx, ny, nz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
+                    omg[i, 2] + omg[j, 2], omg[i, 0] - omg[j, 0], omg[i, 1] - omg[j, 1], omg[i, 2] - omg[j, 2],
+                    pair, optional)"""
+# The pair's law in float32 from the double offsets, velocities and spin sums on (new names, since
+# numba gives a name one type: a name shared with the double wall code would be promoted back).
+PAIR_LAW_SINGLE = """                f32 = nb.float32
+                dist = math.sqrt(f32(dist2))
+                inv = f32(1.0) / dist
+                nx = f32(dx) * inv
+                ny = f32(dy) * inv
+                nz = f32(dz) * inv
+                # dia - dist from the double dia^2 - dist^2 (series to second order, relative error
+                # (overlap/d)^2/2): a float32 difference of dia and dist would lose 0.1 % of the overlap
+                q = f32(dia * dia - dist2)
+                overlap = q * half_inverse_dia * (f32(1.0) + q * quarter_inverse_dia2)
+                if in_feed[i] or in_feed[j]:
+                    max_feed = max(max_feed, f32(overlap))
+                else:
+                    max_overlap = max(max_overlap, f32(overlap))
+                vrx = f32(vel[i, 0] - vel[j, 0])
+                vry = f32(vel[i, 1] - vel[j, 1])
+                vrz = f32(vel[i, 2] - vel[j, 2])
+                fnp = laws.normal_force(overlap, vrx * nx + vry * ny + vrz * nz, pair_single)
+                if fnp <= f32(0.0):
+                    continue
+                fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
+                    fnp, nx, ny, nz, vrx, vry, vrz, f32(omg[i, 0] + omg[j, 0]), f32(omg[i, 1] + omg[j, 1]),
+                    f32(omg[i, 2] + omg[j, 2]), f32(0.0), f32(0.0), f32(0.0), pair_single, optional)"""
+PAIR_CONSTANTS = "        pair = laws.pair_constants(p)\n"
+PAIR_CONSTANTS_SINGLE = PAIR_CONSTANTS + """        f32 = nb.float32
+        pair_single = laws.Contact(f32(pair.radius), f32(pair.stiffness), f32(pair.damping), f32(pair.friction),
+                                   f32(pair.tangential_damping), f32(pair.rolling_resistance), f32(pair.rolling_cap))
+        half_inverse_dia = f32(0.25 / p.radius)
+        quarter_inverse_dia2 = f32(0.0625 / (p.radius * p.radius))
+"""
+# the tangential law's zeros typed as its inputs, so that a float32 law stays float32
+TANGENTIAL_ZEROS = [("        return 0.0, 0.0, 0.0, gt\n    fv = gt * vt", "        zero = vt - vt\n        return zero, zero, zero, gt\n    fv = gt * vt"),
+                    ("    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0", "    return s * vtx, s * vty, s * vtz, gt if fv < fc else gt - gt")]
 
 # name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
 VARIANTS = {
@@ -139,6 +196,7 @@ VARIANTS = {
     "viscous_select": ([], [(TANGENTIAL_TAIL, VISCOUS_SELECT),
                             (TANGENTIAL_SQRT, "    if branchless:\n        vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n")],
                        False),
+    "single_law": ([(PAIR_CONSTANTS, PAIR_CONSTANTS_SINGLE), (PAIR_LAW, PAIR_LAW_SINGLE)], TANGENTIAL_ZEROS, False),
 }
 
 

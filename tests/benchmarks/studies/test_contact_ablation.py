@@ -44,6 +44,20 @@ def test_the_variants_said_to_keep_the_bits_keep_them_and_the_rewritten_law_is_t
     np.testing.assert_array_equal(select[3], engine[3])  # the same contacts in the viscous branch
 
 
+def test_the_single_precision_law_is_the_law_to_float32_rounding(ablation, loop_arguments):
+    engine = ablation.forces_of(contacts._contacts_range_plain, loop_arguments)
+    single = ablation.build("single_law")
+    result, force, torque, _ = ablation.forces_of(single, loop_arguments)
+    # float32 rounds each of a law's ~20 operations by up to 6e-8 relative, so a grain's summed force
+    # is off by ~1e-6 of the largest force; an overlap taken as the float32 difference dia - dist
+    # instead of from dia^2 - dist^2 in double would be off by 2e-3 of it
+    scale = np.abs(engine[1]).max()
+    np.testing.assert_allclose(force, engine[1], rtol=0, atol=1e-5 * scale)
+    np.testing.assert_allclose(torque, engine[2], rtol=0, atol=1e-5 * np.abs(engine[2]).max())
+    np.testing.assert_allclose(result[:2], engine[0][:2], rtol=1e-5)  # the largest overlaps
+    assert force.dtype == np.float64 and not np.array_equal(force, engine[1])
+
+
 def test_a_missing_initial_state_is_refused_before_any_work(ablation, tmp_path, capsys):
     with pytest.raises(SystemExit):
         ablation.main(["--initial-state", str(tmp_path / "none.nc")])
