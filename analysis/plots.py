@@ -507,7 +507,9 @@ def calibration_misfit(first: np.ndarray, second: np.ndarray, chi2: np.ndarray, 
 
 def measured_against_fitted(table: pd.DataFrame, what: str = "fitted"):
     """One panel per measured quantity: each operating point's measured value +- its error and the
-    model's (analysis.calibration.fitted_table columns `fitted`, `fitted_std`)."""
+    model's (analysis.calibration.fitted_table columns `fitted`, `fitted_std`). A model point whose
+    case has no error of its own (column `own_error_known` false) is drawn open: its bar is the
+    fit's part only."""
     quantities = [q for q in TARGETS if q in set(table["quantity"])]
     fig = Figure(figsize=(3.2 * len(quantities), 3.2), layout="constrained")
     for k, quantity in enumerate(quantities):
@@ -515,14 +517,20 @@ def measured_against_fitted(table: pd.DataFrame, what: str = "fitted"):
         rows = table[table["quantity"] == quantity]
         label, factor = TARGETS[quantity]
         x = np.arange(len(rows))
+        known = rows["own_error_known"].to_numpy(bool) if "own_error_known" in rows else np.ones(len(rows), bool)
         ax.errorbar(x - 0.08, rows["value"] * factor, yerr=rows["error"] * factor, fmt="ks", capsize=3,
                     label="measured ± 1 s.d.")
-        ax.errorbar(x + 0.08, rows[what] * factor, yerr=rows[f"{what}_std"] * factor, fmt="ro", capsize=3,
-                    label=f"{what} model ± 1 s.d.")
+        ax.errorbar(x[known] + 0.08, rows[what][known] * factor, yerr=rows[f"{what}_std"][known] * factor,
+                    fmt="ro", capsize=3, label=f"{what} model ± 1 s.d.")
+        if not known.all():
+            ax.errorbar(x[~known] + 0.08, rows[what][~known] * factor, yerr=rows[f"{what}_std"][~known] * factor,
+                        fmt="o", mfc="none", color="r", capsize=3, label=f"{what} model ± the fit's part only")
         ax.set_xticks(x, [str(v) for v in rows["label"]])
         ax.set_xlim(-0.6, len(rows) - 0.4)
         ax.set_xlabel("operating point")
         ax.set_ylabel(label)
-        if k == 0:
-            ax.legend(fontsize=7)
+    legend = {}  # below the panels, once per kind of marker
+    for ax in fig.axes:
+        legend.update({bars.get_label(): bars for bars in ax.containers})
+    fig.legend(list(legend.values()), list(legend), loc="outside lower center", ncols=len(legend), fontsize=7)
     return fig

@@ -192,3 +192,16 @@ def test_calibration_figures_in_the_papers_units():
     assert [ax.get_ylabel() for ax in fig.axes] == ["pressure drop (hPa/m)", "plug length (cm)"]
     assert fig.axes[0].get_lines()[0].get_ydata()[0] == pytest.approx(45.0)  # hPa/m
     assert plots.undrawn_axes(fig) == []
+
+
+def test_a_predicted_point_without_its_own_error_is_drawn_open_and_named_in_the_legend():
+    table = pd.DataFrame({"label": ["A", "C"], "quantity": ["pressure_drop", "pressure_drop"],
+                          "value": [4200.0, 4450.0], "error": [200.0, 200.0], "predicted": [4010.0, 4270.0],
+                          "predicted_std": [430.0, 200.0], "own_error_known": [False, True]})
+    ax = plots.measured_against_fitted(table, what="predicted").axes[0]
+    markers = {bars.get_label(): bars.lines[0] for bars in ax.containers}
+    closed, open_ = markers["predicted model ± 1 s.d."], markers["predicted model ± the fit's part only"]
+    assert closed.get_ydata() == pytest.approx([42.7]) and open_.get_ydata() == pytest.approx([40.1])
+    assert open_.get_markerfacecolor() == "none" and closed.get_markerfacecolor() != "none"
+    labels = [t.get_text() for t in ax.figure.legends[0].get_texts()]
+    assert labels == ["measured ± 1 s.d.", "predicted model ± 1 s.d.", "predicted model ± the fit's part only"]

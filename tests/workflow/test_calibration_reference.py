@@ -37,3 +37,24 @@ def test_the_committed_fit_lies_inside_the_configured_box_and_matches_its_overla
     # the table's measured column is the measurement file's series B
     table = (REFERENCE / "table.md").read_text()
     assert "| B | pressure_drop | 45 ± 2 hPa/m |" in table
+
+
+def test_the_committed_prediction_is_of_the_configured_points_with_the_fits_error_bars():
+    import numpy as np
+    import pandas as pd
+
+    from analysis.measurements import read_measurements, targets
+
+    config = yaml.safe_load((ROOT / "config/calibration.yaml").read_text())
+    measured = targets(read_measurements(ROOT / config["prediction"]["measurements"]))
+    table = pd.read_csv(REFERENCE / "prediction/table.csv", comment="#")
+    assert list(zip(table["label"], table["quantity"])) == list(zip(measured["label"], measured["quantity"]))
+    np.testing.assert_allclose(table[["value", "error"]], measured[["value", "error"]])
+    assert set(table["label"]) == {"A", "C"}  # series B, the fit's, is not predicted
+    assert (table["predicted"] > 0).all() and (table["predicted_std"] > 0).all()
+    pulls = (table["predicted"] - table["value"]) / np.hypot(table["error"], table["predicted_std"])
+    np.testing.assert_allclose(table["pull"], pulls)
+    fitted = json.loads((REFERENCE / "fitted.json").read_text())
+    first = next(iter(fitted["parameters"].values()))
+    assert f"{first['value']:.4g} ± {first['std']:.2g}" in (REFERENCE / "prediction/table.md").read_text()
+    assert (REFERENCE / "prediction/predicted.png").stat().st_size > 0
