@@ -26,6 +26,10 @@ touching contact (grain pairs and wall contacts):
   viscous_select  the tangential law's branch chosen on squares, gamma_t^2 |v_t|^2 < (mu F_n)^2,
                   so that a contact in the viscous branch takes no square root and no division
                   (the same law; the forces differ in the last bits).
+  branchless      the pair's law in the laws' `branchless` form (selects instead of its branches;
+                  bits unchanged);
+  compacted_branchless  both: no branch left between a grain's touching pairs, so that the core
+                  could overlap one pair's chain with the next's (bits unchanged);
   single_law      a pair's law in single precision (float32) from the double offsets, velocities
                   and spin sums, its forces and torques summed in double; the walls in double.
 
@@ -196,6 +200,9 @@ VARIANTS = {
     "viscous_select": ([], [(TANGENTIAL_TAIL, VISCOUS_SELECT),
                             (TANGENTIAL_SQRT, "    if branchless:\n        vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n")],
                        False),
+    "branchless": ([("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),
+    "compacted_branchless": ([(LIST_LOOP, COMPACTED), (WORK_ARRAYS_AT, WORK_ARRAYS),
+                              ("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),
     "single_law": ([(PAIR_CONSTANTS, PAIR_CONSTANTS_SINGLE), (PAIR_LAW, PAIR_LAW_SINGLE)], TANGENTIAL_ZEROS, False),
 }
 
