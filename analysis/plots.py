@@ -520,11 +520,11 @@ def measured_against_fitted(table: pd.DataFrame, what: str = "fitted"):
         known = rows["own_error_known"].to_numpy(bool) if "own_error_known" in rows else np.ones(len(rows), bool)
         ax.errorbar(x - 0.08, rows["value"] * factor, yerr=rows["error"] * factor, fmt="ks", capsize=3,
                     label="measured ± 1 s.d.")
-        ax.errorbar(x[known] + 0.08, rows[what][known] * factor, yerr=rows[f"{what}_std"][known] * factor,
-                    fmt="ro", capsize=3, label=f"{what} model ± 1 s.d.")
-        if not known.all():
-            ax.errorbar(x[~known] + 0.08, rows[what][~known] * factor, yerr=rows[f"{what}_std"][~known] * factor,
-                        fmt="o", mfc="none", color="r", capsize=3, label=f"{what} model ± the fit's part only")
+        for drawn, style, bar in ((known, {"fmt": "ro"}, "± 1 s.d."),
+                                  (~known, {"fmt": "o", "mfc": "none", "color": "r"}, "± the fit's part only")):
+            if drawn.any():
+                ax.errorbar(x[drawn] + 0.08, rows[what][drawn] * factor, yerr=rows[f"{what}_std"][drawn] * factor,
+                            capsize=3, label=f"{what} model {bar}", **style)
         ax.set_xticks(x, [str(v) for v in rows["label"]])
         ax.set_xlim(-0.6, len(rows) - 0.4)
         ax.set_xlabel("operating point")
