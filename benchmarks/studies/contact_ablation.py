@@ -145,8 +145,9 @@ PAIR_LAW = """                dist = math.sqrt(dist2)
                     fn, nx, ny, nz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
                     omg[i, 2] + omg[j, 2], omg[i, 0] - omg[j, 0], omg[i, 1] - omg[j, 1], omg[i, 2] - omg[j, 2],
                     pair, optional)"""
-# The pair's law in float32 from the double offsets, velocities and spin sums on (new names, since
-# numba gives a name one type: a name shared with the double wall code would be promoted back).
+# The pair's law in float32 from the double offsets, velocities and spin sums, under new names:
+# numba gives a name one type, so a name shared with the double wall code would be promoted back.
+# The relative spin is passed as zeros: the variant is compiled without the optional terms.
 PAIR_LAW_SINGLE = """                f32 = nb.float32
                 dist = math.sqrt(f32(dist2))
                 inv = f32(1.0) / dist
@@ -154,7 +155,7 @@ PAIR_LAW_SINGLE = """                f32 = nb.float32
                 ny = f32(dy) * inv
                 nz = f32(dz) * inv
                 # dia - dist from the double dia^2 - dist^2 (series to second order, relative error
-                # (overlap/d)^2/2): a float32 difference of dia and dist would lose 0.1 % of the overlap
+                # (overlap/d)^2/2); a float32 difference dia - dist loses 0.2 % of the largest force
                 q = f32(dia * dia - dist2)
                 overlap = q * half_inverse_dia * (f32(1.0) + q * quarter_inverse_dia2)
                 if in_feed[i] or in_feed[j]:

@@ -15,10 +15,10 @@ valgrind's virtual CPU reports other features (and another name) than the host's
 its cache by them: every run here compiles for the host's CPU name with the features valgrind
 reports (NUMBA_CPU_NAME, NUMBA_CPU_FEATURES), so that the runs under valgrind load the code timed
 natively instead of compiling their own (the features valgrind lacks, such as adx, sha or vaes, are
-not ones this loop's code uses). The
-same variant timed natively (median of 7 rounds of 300 calls, CPU time) and the core's clock
-(a dependent chain of an integer multiply and an add, 4 cycles on AMD Zen and Intel cores since
-Skylake) give its cycles per call and so its instructions per cycle. Needs valgrind on PATH.
+not ones this loop's code uses). The same variant timed natively (median of 7 rounds of 300
+calls, CPU time) and the core's clock (a dependent chain of an integer multiply and an add, 4
+cycles on AMD Zen and Intel cores since Skylake) give its cycles per call and so its instructions
+per cycle. Needs valgrind on PATH.
 """
 
 from __future__ import annotations
