@@ -23,9 +23,9 @@ touching contact (grain pairs and wall contacts):
                   small work arrays, branch-free), then the law over them (bits unchanged);
   signed_index    the partner index as a signed integer, as numba indexes it by default (the
                   wrap-around of negative indices at every load and store; bits unchanged);
-  viscous_select  the tangential law's branch chosen on squares, gamma_t^2 |v_t|^2 < (mu F_n)^2,
-                  so that a contact in the viscous branch takes no square root and no division
-                  (the same law; the forces differ in the last bits).
+  root_both_branches  the tangential law's branch chosen on |v_t| = sqrt(|v_t|^2) instead of on
+                  squares, so that a viscous contact too takes a square root and a division
+                  (the same law as the engine's; the forces differ in the last bits);
   branchless      the pair's law in the laws' `branchless` form (selects instead of its branches;
                   bits unchanged);
   compacted_branchless  both: no branch left between a grain's touching pairs, so that the core
@@ -111,20 +111,17 @@ WORK_ARRAYS = WORK_ARRAYS_AT + """        longest = 1
         bz = np.empty(longest)
         b2 = np.empty(longest)
 """
-TANGENTIAL_TAIL = """    if vt <= 0.0:
-        return 0.0, 0.0, 0.0, gt
-    fv = gt * vt
-    fc = friction * fn
-    ft = min(fc, fv)
-    s = -ft / vt
-    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0"""
-VISCOUS_SELECT = """    vt2 = vtx * vtx + vty * vty + vtz * vtz
-    fc = friction * fn
-    if gt * gt * vt2 < fc * fc or vt2 == 0.0:  # the viscous branch gt |v_t| < mu F_n (or no slip)
+TANGENTIAL_TAIL = """    if viscous:
         return -gt * vtx, -gt * vty, -gt * vtz, gt
     s = -fc / math.sqrt(vt2)
     return s * vtx, s * vty, s * vtz, 0.0"""
-TANGENTIAL_SQRT = "    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n    if branchless:\n"
+ROOT_BOTH_BRANCHES = """    vt = math.sqrt(vt2)
+    if vt <= 0.0:
+        return 0.0, 0.0, 0.0, gt
+    fv = gt * vt
+    ft = min(fc, fv)
+    s = -ft / vt
+    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0"""
 PAIR_LAW = """                dist = math.sqrt(dist2)
                 inv = 1.0 / dist
                 nx = dx * inv
@@ -179,8 +176,9 @@ PAIR_CONSTANTS_SINGLE = PAIR_CONSTANTS + """        f32 = nb.float32
         quarter_inverse_dia2 = f32(0.0625 / (p.radius * p.radius))
 """
 # the tangential law's zeros typed as its inputs, so that a float32 law stays float32
-TANGENTIAL_ZEROS = [("        return 0.0, 0.0, 0.0, gt\n    fv = gt * vt", "        zero = vt - vt\n        return zero, zero, zero, gt\n    fv = gt * vt"),
-                    ("    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0", "    return s * vtx, s * vty, s * vtz, gt if fv < fc else gt - gt")]
+TANGENTIAL_ZEROS = [("        return s * vtx, s * vty, s * vtz, 0.0\n", "        return s * vtx, s * vty, s * vtz, gt - gt\n"),
+                    ("    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, 0.0",
+                     "    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, gt - gt")]
 
 # name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
 VARIANTS = {
@@ -198,9 +196,7 @@ VARIANTS = {
                       ("                if j < end:\n", "                if j < hi:\n"),
                       ("                    top = max(top, nb.int64(j) + 1)\n", "                    top = max(top, j + 1)\n")],
                      [], True),
-    "viscous_select": ([], [(TANGENTIAL_TAIL, VISCOUS_SELECT),
-                            (TANGENTIAL_SQRT, "    if branchless:\n        vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)\n")],
-                       False),
+    "root_both_branches": ([], [(TANGENTIAL_TAIL, ROOT_BOTH_BRANCHES)], False),
     "branchless": ([("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),
     "compacted_branchless": ([(LIST_LOOP, COMPACTED), (WORK_ARRAYS_AT, WORK_ARRAYS),
                               ("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),

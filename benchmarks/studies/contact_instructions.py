@@ -157,7 +157,7 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--variants", nargs="+", default=["engine", "distance_only", "no_walls", "normal_only",
-                                                          "viscous_select", "single_law"],
+                                                          "root_both_branches", "single_law"],
                         help="contact_ablation.py variants (default: the engine and five variants)")
     parser.add_argument("--calls", type=int, default=300, help="calls counted under valgrind (default 300)")
     parser.add_argument("--json", type=Path, help="write the figures here")

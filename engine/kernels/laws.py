@@ -58,31 +58,27 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, friction, gt, branchless=False):
     """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
     if the contact is in its viscous (sticking) branch, else 0.
 
-    `branchless` (a compile-time constant of the caller): the same values by selects instead of a
-    branch, so that a loop over contacts vectorises; at vt = 0 the division is then by 1 and its
-    result unused (no division by zero in any error model); a nan slip stays a nan force."""
+    The branch is chosen on squares, gt^2 |v_t|^2 < (mu F_n)^2 (both sides non-negative), so that
+    a viscous contact, -gt v_t, takes no square root and no division; a slipping one is
+    -mu F_n v_t/|v_t|. `branchless` (a compile-time constant of the caller): the same values by
+    selects instead of a branch, so that a loop over contacts vectorises; the root is then taken of
+    1 where the contact is viscous and its result unused; a nan slip stays a nan force."""
     vcn = vcx * nx + vcy * ny + vcz * nz
     vtx = vcx - vcn * nx
     vty = vcy - vcn * ny
     vtz = vcz - vcn * nz
-    vt = math.sqrt(vtx * vtx + vty * vty + vtz * vtz)
-    if branchless:
-        slipping = not (vt <= 0.0)
-        fv = gt * vt
-        fc = friction * fn
-        ft = min(fc, fv)
-        s = -ft / (vt if slipping else 1.0)
-        g = gt if fv < fc else 0.0
-        if slipping:
-            return s * vtx, s * vty, s * vtz, g
-        return 0.0, 0.0, 0.0, gt
-    if vt <= 0.0:
-        return 0.0, 0.0, 0.0, gt
-    fv = gt * vt
+    vt2 = vtx * vtx + vty * vty + vtz * vtz
     fc = friction * fn
-    ft = min(fc, fv)
-    s = -ft / vt
-    return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0
+    viscous = gt * gt * vt2 < fc * fc or vt2 == 0.0  # no slip counts as viscous: force 0, gt kept
+    if branchless:
+        s = -fc / math.sqrt(1.0 if viscous else vt2)
+        if viscous:
+            return -gt * vtx, -gt * vty, -gt * vtz, gt
+        return s * vtx, s * vty, s * vtz, 0.0
+    if viscous:
+        return -gt * vtx, -gt * vty, -gt * vtz, gt
+    s = -fc / math.sqrt(vt2)
+    return s * vtx, s * vty, s * vtz, 0.0
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")

@@ -249,12 +249,14 @@ TOLERANCES = {
     # packed_bed at 0.15 s. rounding: bit-identical (0) at every frame to 1 s. physics at 0.15 s: k_n
     # z_mean 1.4e-2, x_mean 9.8e-3, z_std 1.3e-2, x_std 3.8e-3, wall_force 2.8e-2, kinetic_energy
     # 0.11; friction z_mean 5.1e-3, x_mean 2.8e-3, z_std 1.7e-2, x_std 4.8e-3, wall_force 0.26,
-    # kinetic_energy 4.0e-3; drag 0 (gas off: the drag is the runs' to catch). A rounding-level
-    # difference on another CPU would grow like the 1 % ones from their 1e-2 start (x_mean 9e-6
-    # at 0.02 s to 6e-3 at 0.1 s under k_n), far below 1e-6 by 0.15 s; 1e-6 is 2800 times below
-    # the smallest physics gap of the positions. Wall force, overlap and kinetic energy hang on
-    # single contacts (their physics gaps jump between 6e-3 and 0.8 from frame to frame), so
-    # they get 1e-3.
+    # kinetic_energy 4.0e-3; drag 0 (gas off: the drag is the runs' to catch). A change of the
+    # last bits of every viscous tangential force (its branch chosen on squares) moved x_mean by
+    # 4.5e-3, z_std 7.6e-3, kinetic_energy 6.7e-2 and max_overlap 0.22 by 0.15 s: the settling
+    # pile amplifies rounding at every step to the size of the 1 % physics gaps, so a failure
+    # here says that the arithmetic changed, not how much the physics did. 1e-6 is 2800 times
+    # below the smallest physics gap of the positions. Wall force, overlap and kinetic energy
+    # hang on single contacts (their physics gaps jump between 6e-3 and 0.8 from frame to
+    # frame), so they get 1e-3.
     "packed_bed": {"*": (1e-6, 0.0), "n_particles": EXACT, "wall_force": (1e-3, 0.0),
                    "max_overlap": (1e-3, 0.0), "kinetic_energy": (1e-3, 0.0)},
     # horizontal at 0.08 s, the default split gas scheme. rounding: the runs part at 0.06 s (3e-16

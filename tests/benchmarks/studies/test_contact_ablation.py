@@ -37,11 +37,13 @@ def test_the_variants_said_to_keep_the_bits_keep_them_and_the_rewritten_law_is_t
     for name in ("compacted", "signed_index", "branchless", "compacted_branchless"):
         assert ablation.VARIANTS[name][2]
         assert ablation.compare(ablation.forces_of(ablation.build(name), loop_arguments), engine)["bit_identical"], name
-    select = ablation.forces_of(ablation.build("viscous_select"), loop_arguments)
-    # the same law with its branch chosen on squares: only the rounding of s = -gt vt / vt differs, a few ulp
-    # of each tangential force (1e-16 relative); a wrong branch would move a force by mu F_n - gt vt
-    np.testing.assert_allclose(select[1], engine[1], rtol=0, atol=1e-12 * np.abs(engine[1]).max())
-    np.testing.assert_array_equal(select[3], engine[3])  # the same contacts in the viscous branch
+    # the same law with its branch chosen on |v_t| instead of on squares: only the rounding of
+    # s = -gt |v_t| / |v_t| differs, a few ulp of each tangential force (1e-16 relative); a wrong branch
+    # would move a force by mu F_n - gt |v_t|
+    other = ablation.forces_of(ablation.build("root_both_branches"), loop_arguments)
+    np.testing.assert_allclose(other[1], engine[1], rtol=0, atol=1e-12 * np.abs(engine[1]).max())
+    np.testing.assert_array_equal(other[3], engine[3])  # the same contacts in the viscous branch
+    assert not ablation.compare(other, engine)["bit_identical"]
 
 
 def test_the_single_precision_law_is_the_law_to_float32_rounding(ablation, loop_arguments):
