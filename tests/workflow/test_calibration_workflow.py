@@ -21,8 +21,11 @@ from .test_workflow import ROOT, scratch, snakemake
 
 TRUE = {"gas.viscosity": 6.0e-5, "particles.friction": 0.4}
 BOUNDS = {"gas.viscosity": [4.5e-5, 8.5e-5], "particles.friction": [0.2, 0.8]}
-# a 10 cm vertical tube at the default flow: ~800 grains in plugs, 10-25 CPU s per 2 s case
-RUN = {"tube.length": 0.1, "run.duration": 2.0, "output.snapshots": False}
+# a 10 cm vertical tube at the default flow: ~800 grains in plugs, 15-40 CPU s per 3 s case. The
+# tube fills for about 1.6 s: a 2 s run leaves a window of 0.4 s, whose pressure drop error need
+# not converge (measured: the truth's did not on one trajectory, and the fit then stopped at the
+# viscosity's bound); 3 s leaves 1.4 s
+RUN = {"tube.length": 0.1, "run.duration": 3.0, "output.snapshots": False}
 
 
 def measure(work) -> dict:
@@ -41,11 +44,15 @@ def test_calibration_recovers_the_viscosity_and_friction_it_was_measured_at(tmp_
     work = scratch(tmp_path)
     s = measure(work)
     # the rig's errors: twice the case's own standard errors (a measurement no more precise than
-    # the model's run-to-run scatter); plug ranges +-2 of them
+    # the model's run-to-run scatter); plug ranges +-2 of them. Whether the 2 s run's pressure drop
+    # error converges depends on its trajectory: if not, its estimate over the shorter window, as
+    # the calibration itself takes it
+    sem = s["pressure_drop_sem"] if s["pressure_drop_converged"] else s["pressure_drop_sem_estimate"]
+    assert sem > 0
     row = {"label": "T", "orientation": "vertical", "tube_length_m": 0.1, "tube_diameter_m": 0.007,
            "particle_diameter_m": 0.0014, "particle_density_kg_m3": 937, "superficial_velocity_m_s": 1.0,
            "mass_flow_kg_h": 2.49, "pressure_drop_hPa_m": s["pressure_drop"] / 100,
-           "pressure_drop_error_hPa_m": 2 * s["pressure_drop_sem"] / 100}
+           "pressure_drop_error_hPa_m": 2 * sem / 100}
     for name, key in (("plug_velocity", "slug_velocity"), ("plug_length", "slug_length_total")):
         unit = "m_s" if name == "plug_velocity" else "m"
         row[f"{name}_min_{unit}"] = s[key] - 2 * s[f"{key}_sem"]
