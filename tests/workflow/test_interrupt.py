@@ -48,10 +48,11 @@ def wait_for(condition, timeout: float, what: str, proc: subprocess.Popen | None
 def test_sigint_to_snakemake_stops_the_case_which_resumes_on_the_next_run(tmp_path):
     work = scratch(tmp_path)
     # a 3 cm tube, checkpointing every half second of wall time so that the test knows when the
-    # run is past its first frame; 2 s simulated, far longer than the test waits
+    # run is past its first frame; 6 s simulated, far longer than the test waits (2 s ran in 3.4 s
+    # of wall time, and on a loaded machine the signal came after the run had ended)
     (work / "config/stop.yaml").write_text(yaml.safe_dump({"sweeps": {"h_stop": {
         "base": "config/cases/horizontal.yaml", "position": 0.015,
-        "overrides": {"tube.length": 0.03, "gas.nodes_x": 9, "run.duration": 2.0,
+        "overrides": {"tube.length": 0.03, "gas.nodes_x": 9, "run.duration": 6.0,
                       "run.until_steady": False, "run.checkpoint_interval": 0.5}}}}))
     command = [*SNAKEMAKE, "--snakefile", str(ROOT / "Snakefile"), CASE, "--cores", "1",
                "--configfile", "config/stop.yaml"]
