@@ -175,9 +175,9 @@ PAIR_CONSTANTS_SINGLE = PAIR_CONSTANTS + """        f32 = nb.float32
         half_inverse_dia = f32(0.25 / p.radius)
         quarter_inverse_dia2 = f32(0.0625 / (p.radius * p.radius))
 """
-# the tangential law's zeros typed as its inputs, so that a float32 law stays float32
-TANGENTIAL_ZEROS = [("        return s * vtx, s * vty, s * vtz, 0.0\n", "        return s * vtx, s * vty, s * vtz, gt - gt\n"),
-                    ("    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, 0.0",
+# the slipping branch's zero gamma_t typed as its inputs, so that a float32 law stays float32 (the
+# branch-free form is not compiled here)
+TANGENTIAL_ZEROS = [("    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, 0.0",
                      "    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, gt - gt")]
 
 # name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
