@@ -6,6 +6,7 @@ the outlet are dropped in the same pass.
 """
 
 import numba as nb
+import numpy as np
 
 from . import indices
 
@@ -76,42 +77,72 @@ def sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start,
 
 
 @nb.njit(cache=True)
+def _half_stencil_runs(cx, cy, cz, shape, cell_start, run_lo, run_hi):
+    """Grain ranges of the half stencil of cell (cx, cy, cz), in ascending cell order.
+
+    Grains are sorted by cell, so every j > i of a grain in this cell lies in this cell or in the 13
+    neighbour cells of larger index (the other 13 hold only j < i). For fixed (ax, ay) the cells
+    along z are consecutive, so their grains form one contiguous range: at most five ranges.
+    Returns their number; range r is run_lo[r] <= j < run_hi[r].
+    """
+    ncx = shape[indices.NCX]
+    ncy = shape[indices.NCY]
+    ncz = shape[indices.NCZ]
+    runs = 0
+    for ax in range(cx, min(cx + 2, ncx)):
+        for ay in range(cy if ax == cx else max(cy - 1, 0), min(cy + 2, ncy)):
+            z_lo = cz if ax == cx and ay == cy else max(cz - 1, 0)
+            z_hi = min(cz + 2, ncz)
+            c = (ax * ncy + ay) * ncz
+            run_lo[runs] = cell_start[c + z_lo]
+            run_hi[runs] = cell_start[c + z_hi]
+            runs += 1
+    return runs
+
+
+@nb.njit(cache=True)
 def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
     """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
 
-    Returns the number of pairs, or -1 if nbr is too small (the caller grows it and calls again).
-    Pairs of two kinematic (feed) grains are skipped.
+    Each grain's partners are listed in ascending index (the order the contact sums take). Returns
+    the number of pairs, or -1 if nbr is too small (the caller grows it and calls again). Pairs of
+    two kinematic (feed) grains are skipped. The loop runs over cells, so a cell's grains share its
+    stencil's ranges.
     """
-    r = p.radius
-    cut = 2.0 * r + p.skin
+    cut = 2.0 * p.radius + p.skin
     cut2 = cut * cut
     ncx = shape[indices.NCX]
     ncy = shape[indices.NCY]
     ncz = shape[indices.NCZ]
     cap = nbr.shape[0]
+    run_lo = np.empty(5, np.int64)
+    run_hi = np.empty(5, np.int64)
     k = 0
-    for i in range(n):
-        nbr_start[i] = k
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        zi = pos[i, 2]
-        cx, cy, cz = _cell_index(xi, yi, zi, p, shape)
-        # half stencil: grains are sorted by cell, so every j > i lies in this cell or in the 13
-        # neighbour cells of larger index (the other 13 hold only j < i)
-        for ax in range(cx, min(cx + 2, ncx)):
-            for ay in range(cy if ax == cx else max(cy - 1, 0), min(cy + 2, ncy)):
-                for az in range(cz if ax == cx and ay == cy else max(cz - 1, 0), min(cz + 2, ncz)):
-                    c = (ax * ncy + ay) * ncz + az
-                    for j in range(max(cell_start[c], i + 1), cell_start[c + 1]):
-                        if in_feed[i] and in_feed[j]:
-                            continue
-                        dx = pos[j, 0] - xi
-                        dy = pos[j, 1] - yi
-                        dz = pos[j, 2] - zi
-                        if dx * dx + dy * dy + dz * dz < cut2:
-                            if k >= cap:
-                                return -1
+    for cx in range(ncx):
+        for cy in range(ncy):
+            for cz in range(ncz):
+                c = (cx * ncy + cy) * ncz + cz
+                if cell_start[c] == cell_start[c + 1]:
+                    continue
+                runs = _half_stencil_runs(cx, cy, cz, shape, cell_start, run_lo, run_hi)
+                for i in range(cell_start[c], cell_start[c + 1]):
+                    nbr_start[i] = k
+                    xi = pos[i, 0]
+                    yi = pos[i, 1]
+                    zi = pos[i, 2]
+                    feed_i = in_feed[i]
+                    for r in range(runs):
+                        lo = max(run_lo[r], i + 1)
+                        hi = run_hi[r]
+                        if k + hi - lo > cap:
+                            return -1
+                        # branch-free: every candidate is written, the next slot taken only if it is kept
+                        for j in range(nb.uint64(lo), nb.uint64(hi)):
+                            dx = pos[j, 0] - xi
+                            dy = pos[j, 1] - yi
+                            dz = pos[j, 2] - zi
+                            keep = dx * dx + dy * dy + dz * dz < cut2 and not (feed_i and in_feed[j])
                             nbr[k] = j
-                            k += 1
+                            k += keep
     nbr_start[n] = k
     return k

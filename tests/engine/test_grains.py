@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from engine import Case, CaseError, Simulation, SimulationError
+from engine.kernels import indices
 from engine.simulation import FeedBlocked
 
 D_GRAIN = 1.4e-3
@@ -218,21 +219,58 @@ def test_energy_is_conserved_without_damping_and_friction():
     assert np.max(np.abs(np.array(energies) / e0 - 1)) < 5e-3
 
 
-def test_neighbor_list_matches_brute_force():
-    sim = Simulation(grain_case("physics.gravity=0"))
-    rng = np.random.default_rng(4)
-    n = 400
+def random_grains_in_tube(n, seed):
+    rng = np.random.default_rng(seed)
     x = rng.uniform(0.01, 0.05, n)
     rho = (R_TUBE - D_GRAIN / 2) * np.sqrt(rng.uniform(0, 1, n))
     phi = rng.uniform(0, 2 * np.pi, n)
-    sim.add_particles(np.column_stack([x, rho * np.cos(phi), rho * np.sin(phi)]))
+    return np.column_stack([x, rho * np.cos(phi), rho * np.sin(phi)])
+
+
+def neighbor_lists(sim):
+    """Each grain's listed partners, in list order."""
+    start = sim._nbr_start
+    return [sim._nbr[start[i]:start[i + 1]].tolist() for i in range(sim.n_particles)]
+
+
+def test_neighbor_list_matches_brute_force():
+    sim = Simulation(grain_case("physics.gravity=0"))
+    n = 400
+    sim.add_particles(random_grains_in_tube(n, seed=4))
     sim._prepare()
     pos = sim._pos[:n]
     cutoff = D_GRAIN + sim._p.skin
     expect = brute_force_pairs(pos, cutoff)
-    got = {(min(i, j), max(i, j)) for i in range(n)
-           for j in sim._nbr[sim._nbr_start[i]:sim._nbr_start[i + 1]].tolist()}
+    lists = neighbor_lists(sim)
+    got = {(min(i, j), max(i, j)) for i, partners in enumerate(lists) for j in partners}
     assert got == expect
+    # the contact sums run over a grain's partners in list order: a half list in ascending index
+    assert all(partners == sorted(partners) and all(j > i for j in partners) for i, partners in enumerate(lists))
+
+
+def test_neighbor_list_grows_from_too_small_a_buffer():
+    """A list that does not fit is grown until it does, to the list a large buffer gives."""
+    pos = random_grains_in_tube(400, seed=5)
+    roomy = Simulation(grain_case("physics.gravity=0"))
+    roomy.add_particles(pos)
+    roomy._prepare()
+    tight = Simulation(grain_case("physics.gravity=0"))
+    tight.add_particles(pos)
+    tight._nbr = np.zeros(8, dtype=np.int64)
+    tight._prepare()
+    assert len(tight._nbr) > 8
+    assert neighbor_lists(tight) == neighbor_lists(roomy)
+    # a list outgrown in the time loop (the feed adding grains) is grown there and the broken step
+    # completed; every touching pair is listed afterwards
+    sim = Simulation(Case().with_overrides(["gas.enabled=false"]))
+    sim._nbr = np.zeros(8, dtype=np.int64)
+    sim.advance(0.001)
+    first = len(sim._nbr)
+    sim.advance(0.1)
+    assert len(sim._nbr) > first and sim.n_particles > 30
+    n = sim.n_particles
+    listed = {(i, j) for i, partners in enumerate(neighbor_lists(sim)) for j in partners}
+    assert brute_force_pairs(sim._pos[:n], D_GRAIN) <= listed
 
 
 def settle_feed(seconds, *overrides):
