@@ -1,8 +1,8 @@
 """Cell lists and the Verlet neighbour list for a long thin tube.
 
-Cells are boxes of at least the list cutoff d + skin: many along x, a few across (the 7 mm tube holds
-4 x 4). Grains are sorted by cell at every rebuild, so neighbours sit close in memory; grains past
-the outlet are dropped in the same pass.
+Cells are boxes of at least the list cutoff d + skin: many along x, a few across (the 7 mm tube
+holds 3 x 3 at the default skin). Grains are sorted by cell at every rebuild, so neighbours sit
+close in memory; grains past the outlet are dropped in the same pass.
 """
 
 import numba as nb
@@ -105,9 +105,9 @@ def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
     """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
 
     Each grain's partners are listed in ascending index (the order the contact sums take). Returns
-    the number of pairs, or -1 if nbr is too small (the caller grows it and calls again). Pairs of
-    two kinematic (feed) grains are skipped. The loop runs over cells, so a cell's grains share its
-    stencil's ranges.
+    the number of pairs, or -1 if nbr may be too small: room is checked for every candidate of a
+    range before it is tested (the caller grows nbr and calls again). Pairs of two kinematic (feed)
+    grains are skipped. The loop runs over cells, so a cell's grains share its stencil's ranges.
     """
     cut = 2.0 * p.radius + p.skin
     cut2 = cut * cut
