@@ -212,7 +212,7 @@ class Simulation:
             self._n[0] = rebuild(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters)
             if not self._counters[indices.OVERFLOW]:
                 return
-            self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
+            self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
 
     def advance(self, seconds: float) -> None:
         """Advance by `seconds` of simulated time (rounded to whole time steps)."""
@@ -233,10 +233,10 @@ class Simulation:
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
                             self.gas.arrays(), self._chunks, self._pairs)
             if self._counters[indices.OVERFLOW]:  # grow the neighbour list and finish the broken step
-                self._nbr = np.zeros(2 * len(self._nbr), dtype=np.int64)
+                self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
-                            self._diag, self._chunks, self._pairs)
+                            self._diag, self.gas.arrays(), self._chunks, self._pairs)
                 taken += 1
             self._steps += taken
             remaining -= taken

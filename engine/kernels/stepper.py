@@ -138,23 +138,32 @@ def advance(nsteps, state_n, grains, p, nbrs, counters, diag, gas, chunks, pairs
             n = rebuild(grains, n, p, nbrs, counters)
             if counters[indices.OVERFLOW]:
                 break  # velocities are at the half step: the caller's finish_step completes it
-        if p.gas_on > 0.0 and counters[indices.STEPS] % int(p.gas_interval) == 0:
-            couple(grains.pos, grains.vel, n, gas, dt * p.gas_interval, 1, p.gas_theta,
-                   p.feed_volume_rate, grains.drag, False)
-        _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
+        _step_forces(grains, n, p, nbrs, counters, diag, gas, chunks, pairs)
         taken += 1
         kick_dt = dt
-        if diag[indices.DIAG_FEED_OVERLAP] <= p.feed_max_overlap:
-            counters[indices.PRESSED_STEPS] = 0
-        else:
-            counters[indices.PRESSED_STEPS] += 1
-            if counters[indices.PRESSED_STEPS] >= p.feed_block_steps:
-                counters[indices.STATUS] = indices.BLOCKED
-                break
+        if counters[indices.STATUS] == indices.BLOCKED:
+            break
     if taken > 0 and (taken == nsteps or counters[indices.STATUS] == indices.BLOCKED):
         _kick(grains, n, p, 0.5 * dt)  # closing half kick: full-step velocities
     state_n[0] = n
     return taken
+
+
+@nb.njit(cache=True)
+def _step_forces(grains, n, p, nbrs, counters, diag, gas, chunks, pairs):
+    """The rest of a step after its drift and rebuild: the gas (on a gas step), the forces at the
+    new positions, and the feed's pressed-step count (counters[STATUS] = BLOCKED when it reaches
+    p.feed_block_steps)."""
+    if p.gas_on > 0.0 and counters[indices.STEPS] % int(p.gas_interval) == 0:
+        couple(grains.pos, grains.vel, n, gas, p.dt * p.gas_interval, 1, p.gas_theta,
+               p.feed_volume_rate, grains.drag, False)
+    _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
+    if diag[indices.DIAG_FEED_OVERLAP] <= p.feed_max_overlap:
+        counters[indices.PRESSED_STEPS] = 0
+    else:
+        counters[indices.PRESSED_STEPS] += 1
+        if counters[indices.PRESSED_STEPS] >= p.feed_block_steps:
+            counters[indices.STATUS] = indices.BLOCKED
 
 
 @nb.njit(cache=True)
@@ -178,7 +187,8 @@ def _forces(grains, n, p, nbrs, counters, diag, chunks, pairs):
 
 
 @nb.njit(cache=True)
-def finish_step(grains, n, p, nbrs, counters, diag, chunks, pairs):
-    """Second half of a step broken off by advance: forces at the new positions, closing half kick."""
-    _forces(grains, n, p, nbrs, counters, diag, chunks, pairs)
+def finish_step(grains, n, p, nbrs, counters, diag, gas, chunks, pairs):
+    """Second half of a step broken off by advance (its list outgrown): what the step had left
+    (_step_forces), then the closing half kick."""
+    _step_forces(grains, n, p, nbrs, counters, diag, gas, chunks, pairs)
     _kick(grains, n, p, 0.5 * p.dt)
