@@ -212,7 +212,11 @@ class Simulation:
             self._n[0] = rebuild(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters)
             if not self._counters[indices.OVERFLOW]:
                 return
-            self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
+            self._grow_neighbor_list()
+
+    def _grow_neighbor_list(self) -> None:
+        """A neighbour-list buffer twice as long (at least 1024 entries: an empty one grows too)."""
+        self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
 
     def advance(self, seconds: float) -> None:
         """Advance by `seconds` of simulated time (rounded to whole time steps)."""
@@ -233,7 +237,7 @@ class Simulation:
             taken = advance(steps, self._n, self._grains(), self._p, self._neighbors(), self._counters, self._diag,
                             self.gas.arrays(), self._chunks, self._pairs)
             if self._counters[indices.OVERFLOW]:  # grow the neighbour list and finish the broken step
-                self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
+                self._grow_neighbor_list()
                 self._rebuild()
                 finish_step(self._grains(), int(self._n[0]), self._p, self._neighbors(), self._counters,
                             self._diag, self.gas.arrays(), self._chunks, self._pairs)
