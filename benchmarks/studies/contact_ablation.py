@@ -3,7 +3,8 @@
 parts cut out or rewritten.
 
     python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json] \
-        [--initial-state results/cases/h_default/base.nc --case config/cases/horizontal.yaml]
+        [--initial-state results/cases/h_default/base.nc --case config/cases/horizontal.yaml] \
+        [--moving STEPS]
 
 Each variant is the engine's single loop (`_contacts_range_with` in engine/kernels/contacts.py,
 without the optional terms) compiled from its source with one edit, so that it measures the
@@ -33,6 +34,13 @@ touching contact (grain pairs and wall contacts):
   single_law      a pair's law in single precision (float32) from the double offsets, velocities
                   and spin sums, its forces and torques summed in double; the walls in double.
 
+A state called repeatedly is cheaper than one that changes every step (a step on moving grains costs
+1.05-1.19x the same loop on held ones, benchmarks/studies/step_split.py). With --moving
+STEPS each variant instead advances its own copy of the state by STEPS steps (the merged kick and
+drift between its calls, the forces of each step its own), from the same state every round; the
+kick and drift alone are subtracted. The variants that cut a part out of the law are left out
+there, since their grains would move otherwise.
+
 The variants that keep the bits are checked to give the engine's forces, torques and damping sums
 bit for bit; the others report their largest force difference. The cost splits are differences
 of these times; docs/performance.md, "The contact kernel", quotes them.
@@ -56,7 +64,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from engine import Case, Simulation  # noqa: E402
 from engine.bench import contact_count, settled_simulation  # noqa: E402
-from engine.kernels import contacts, laws  # noqa: E402
+from engine.kernels import contacts, laws, stepper  # noqa: E402
 from engine.run import read_initial_state  # noqa: E402
 
 SOURCE = Path(contacts.__file__)
@@ -180,6 +188,8 @@ PAIR_CONSTANTS_SINGLE = PAIR_CONSTANTS + """        f32 = nb.float32
 TANGENTIAL_ZEROS = [("    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, 0.0",
                      "    s = -fc / math.sqrt(vt2)\n    return s * vtx, s * vty, s * vtz, gt - gt")]
 
+# the variants that cut a part of the law out: the grains would move otherwise, so --moving leaves them out
+CUTS = ("distance_only", "no_walls", "normal_only", "no_scatter")
 # name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
 VARIANTS = {
     "distance_only": ([(DISTANCE, "                touching += 1\n                fxi += dist2\n                continue\n"
@@ -254,6 +264,45 @@ def _caller(loop):
     return run
 
 
+def _moving_caller(loop):
+    """steps of the merged kick and drift followed by `loop`, on grains that move as in a run (the
+    forces of each step from the last); stops before a step whose drift asks for a rebuild."""
+    @nb.njit
+    def run(steps, grains, n, nbr_start, nbr, p, force, torque, damping, counts, counters):
+        taken = 0
+        for _ in range(steps):
+            if stepper._kick_drift(grains, n, p, p.dt, counters):
+                break
+            loop(0, n, grains, nbr_start, nbr, p, force, torque, damping, counts)
+            taken += 1
+        return taken
+    return run
+
+
+def time_moving(loops: dict, grains, n, nbr_start, nbr, p, counters, steps: int, repeats: int) -> dict:
+    """Per loop, µs per step of `steps` moving steps (kick, drift and the loop) from copies of the
+    same grains, interleaved rounds (CPU time); "kick_drift" is the kick and drift alone (the forces
+    held)."""
+    runs = {name: _moving_caller(loop) for name, loop in loops.items()}
+    runs["kick_drift"] = _moving_caller(_no_forces)
+    times = {name: [] for name in runs}
+    for round_ in range(repeats + 1):  # the first round compiles
+        for name, run in runs.items():
+            copy = type(grains)(*[a.copy() for a in grains])
+            start = time.process_time()
+            taken = run(steps, copy, n, nbr_start, nbr, p, copy.force, copy.torque, copy.viscous_damping,
+                        nbr_start[:0], counters.copy())
+            if round_:
+                times[name].append((time.process_time() - start) / max(taken, 1))
+    return times
+
+
+@nb.njit
+def _no_forces(lo, hi, grains, nbr_start, nbr, p, force, torque, damping, counts):
+    """The forces left as they are (time_moving's kick and drift alone)."""
+    return 0.0, 0.0, hi
+
+
 def conveying_state(case_file: Path, initial_state: Path, settle: float = 0.005) -> Simulation:
     """The final grains of `initial_state` as a warm start of `case_file`, advanced `settle` s."""
     case = Case.from_yaml(case_file)
@@ -269,11 +318,15 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=7, help="interleaved rounds (default 7)")
     parser.add_argument("--json", type=Path, help="write the figures here")
     parser.add_argument("--initial-state", type=Path, help="a case file whose final grains are the state")
+    parser.add_argument("--moving", type=int, default=0, metavar="STEPS",
+                        help="time each variant over STEPS steps of grains that move (the merged kick and drift "
+                             "between calls, from copies of the state; 0: the same state called repeatedly, the "
+                             "default); the figures are then per step, less the kick and drift alone")
     parser.add_argument("--case", type=Path, default=Path("config/cases/horizontal.yaml"),
                         help="case YAML the --initial-state is a warm start of (default: the horizontal default)")
     args = parser.parse_args(argv)
-    if args.calls < 1 or args.repeats < 1:
-        parser.error("--calls and --repeats must be at least 1")
+    if args.calls < 1 or args.repeats < 1 or args.moving < 0:
+        parser.error("--calls and --repeats must be at least 1, --moving at least 0")
     for given in ([args.initial_state, args.case] if args.initial_state else []):
         if not given.is_file():
             parser.error(f"{given}: no such file")
@@ -285,30 +338,38 @@ def main(argv=None) -> int:
     loop_arguments = (0, n, grains, nbr_start, nbr, p, *arguments[5:])  # lo, hi, then as the caller's
     counted = contact_count(sim)
     touching = counted["pairs"] + counted["walls"]
-    names = ["engine", *VARIANTS]
+    names = ["engine", *(name for name in VARIANTS if not (args.moving and name in CUTS))]
     loops = {name: build(name) for name in names}
 
     reference = forces_of(loops["engine"], loop_arguments)
     if not compare(forces_of(contacts._contacts_range_plain, loop_arguments), reference)["bit_identical"]:
         raise SystemExit("the loop compiled from the source does not give the engine's bits")
     same = {}
-    for name in VARIANTS:
+    for name in names[1:]:
         same[name] = compare(forces_of(loops[name], loop_arguments), reference)
         if VARIANTS[name][2] and not same[name]["bit_identical"]:
             raise SystemExit(f"variant {name} should keep the engine's bits and does not")
     loops["engine"](*loop_arguments)  # the state's forces as the engine computes them
 
-    runs = {name: _caller(loop) for name, loop in loops.items()}
-    for run in runs.values():
-        run(1, *arguments)
-    times = {name: [] for name in runs}
-    for _ in range(args.repeats):
-        for name, run in runs.items():
-            start = time.process_time()
-            run(args.calls, *arguments)
-            times[name].append((time.process_time() - start) / args.calls)
+    if args.moving:
+        times = time_moving(loops, grains, n, nbr_start, nbr, p, sim._counters, args.moving, args.repeats)
+        kick = statistics.median(times.pop("kick_drift"))
+        times = {name: [t - kick for t in ts] for name, ts in times.items()}
+        how = (f"medians of {args.repeats} rounds of {args.moving} moving steps, less the kick and drift alone "
+               f"({1e6 * kick:.1f} us per step)")
+    else:
+        runs = {name: _caller(loop) for name, loop in loops.items()}
+        for run in runs.values():
+            run(1, *arguments)
+        times = {name: [] for name in runs}
+        for _ in range(args.repeats):
+            for name, run in runs.items():
+                start = time.process_time()
+                run(args.calls, *arguments)
+                times[name].append((time.process_time() - start) / args.calls)
+        how = f"medians of {args.repeats} rounds of {args.calls} calls"
     print(f"{args.initial_state or 'standard packing'}: {n} grains, {counted['pairs']} touching pairs, {counted['walls']} wall contacts, "
-          f"{counted['list_entries']} list entries; medians of {args.repeats} rounds of {args.calls} calls")
+          f"{counted['list_entries']} list entries; {how}")
     out = {"contacts": counted, "variants": {}}
     for name, t in times.items():
         ratios = [a / b for a, b in zip(times["engine"], t)]

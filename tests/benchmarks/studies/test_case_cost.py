@@ -59,3 +59,11 @@ def test_a_variant_can_set_the_thread_count(case_cost, state, tmp_path):
     sims = [case_cost.prepare(str(case), str(state), v) for v in ("", "threads=2 numerics.neighbor_skin=0.6")]
     assert [s.threads for s in sims] == [1, 2]
     assert sims[1].case["numerics.neighbor_skin"] == 0.6
+
+
+def test_a_variant_can_run_the_contact_passes(case_cost, state, tmp_path):
+    case = tmp_path / "small.yaml"
+    case.write_text(Case.from_yaml(ROOT / "config/cases/vertical.yaml", SMALL).to_yaml())
+    sims = [case_cost.prepare(str(case), str(state), v) for v in ("", "passes=1 numerics.neighbor_skin=0.6")]
+    assert [s.contact_passes for s in sims] == [False, True]
+    assert sims[1].case["numerics.neighbor_skin"] == 0.6

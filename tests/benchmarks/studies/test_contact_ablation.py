@@ -66,3 +66,20 @@ def test_a_missing_initial_state_is_refused_before_any_work(ablation, tmp_path, 
     assert "none.nc: no such file" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         ablation.main(["--repeats", "0"])
+
+
+def test_the_moving_timing_moves_copies_and_leaves_the_state(ablation):
+    sim = small_conveying_simulation()
+    n, grains = sim.n_particles, sim._grains()
+    before = [a.copy() for a in grains]
+    times = ablation.time_moving({"engine": contacts._contacts_range_plain}, grains, n, sim._nbr_start, sim._nbr,
+                                 sim._p, sim._counters, steps=2, repeats=1)
+    assert set(times) == {"engine", "kick_drift"}
+    assert all(len(t) == 1 and t[0] > 0 for t in times.values())
+    for a, b in zip(before, grains):
+        np.testing.assert_array_equal(a, b)
+    copy = type(grains)(*[a.copy() for a in grains])
+    run = ablation._moving_caller(contacts._contacts_range_plain)
+    taken = run(2, copy, n, sim._nbr_start, sim._nbr, sim._p, copy.force, copy.torque, copy.viscous_damping,
+                sim._nbr_start[:0], sim._counters.copy())
+    assert taken == 2 and not np.array_equal(copy.pos[:n], grains.pos[:n])  # the timed grains move
