@@ -4,7 +4,7 @@ parts cut out or rewritten.
 
     python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json] \
         [--initial-state results/cases/h_default/base.nc --case config/cases/horizontal.yaml] \
-        [--moving STEPS]
+        [--moving STEPS] [--variants NAME ...]
 
 Each variant is the engine's single loop (`_contacts_range_with` in engine/kernels/contacts.py,
 without the optional terms) compiled from its source with one edit, so that it measures the
@@ -29,6 +29,8 @@ touching contact (grain pairs and wall contacts):
                   (the same law as the engine's; the forces differ in the last bits);
   branchless      the pair's law in the laws' `branchless` form (selects instead of its branches;
                   bits unchanged);
+  compacted_index  per grain, only the touching partners' indices compacted first, their offsets
+                  recomputed in the law's loop (bits unchanged);
   compacted_branchless  both: no branch left between a grain's touching pairs, so that the core
                   could overlap one pair's chain with the next's (bits unchanged);
   single_law      a pair's law in single precision (float32) from the double offsets, velocities
@@ -108,6 +110,23 @@ COMPACTED = """            m = 0
                 dy = by[t]
                 dz = bz[t]
                 dist2 = b2[t]
+"""
+COMPACTED_INDEX = """            m = 0
+            for k in range(nbr_start[i], nbr_start[i + 1]):
+                j = nb.uint64(nbr[k])
+                dx = pos[j, 0] - xi
+                dy = pos[j, 1] - yi
+                dz = pos[j, 2] - zi
+                dist2 = dx * dx + dy * dy + dz * dz
+                bj[m] = j
+                m += not (dist2 >= dia * dia)
+            touching += m
+            for t in range(m):
+                j = bj[t]
+                dx = pos[j, 0] - xi
+                dy = pos[j, 1] - yi
+                dz = pos[j, 2] - zi
+                dist2 = dx * dx + dy * dy + dz * dz
 """
 WORK_ARRAYS_AT = "        implicit = p.implicit_spin > 0.0  # viscous_damping is only read (and summed) then\n"
 WORK_ARRAYS = WORK_ARRAYS_AT + """        longest = 1
@@ -208,6 +227,7 @@ VARIANTS = {
                      [], True),
     "root_both_branches": ([], [(TANGENTIAL_TAIL, ROOT_BOTH_BRANCHES)], False),
     "branchless": ([("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),
+    "compacted_index": ([(LIST_LOOP, COMPACTED_INDEX), (WORK_ARRAYS_AT, WORK_ARRAYS)], [], True),
     "compacted_branchless": ([(LIST_LOOP, COMPACTED), (WORK_ARRAYS_AT, WORK_ARRAYS),
                               ("                    pair, optional)\n", "                    pair, optional, True)\n")], [], True),
     "single_law": ([(PAIR_CONSTANTS, PAIR_CONSTANTS_SINGLE), (PAIR_LAW, PAIR_LAW_SINGLE)], TANGENTIAL_ZEROS, False),
@@ -322,11 +342,15 @@ def main(argv=None) -> int:
                         help="time each variant over STEPS steps of grains that move (the merged kick and drift "
                              "between calls, from copies of the state; 0: the same state called repeatedly, the "
                              "default); the figures are then per step, less the kick and drift alone")
+    parser.add_argument("--variants", nargs="+", metavar="NAME", help="only these variants (default: all)")
     parser.add_argument("--case", type=Path, default=Path("config/cases/horizontal.yaml"),
                         help="case YAML the --initial-state is a warm start of (default: the horizontal default)")
     args = parser.parse_args(argv)
     if args.calls < 1 or args.repeats < 1 or args.moving < 0:
         parser.error("--calls and --repeats must be at least 1, --moving at least 0")
+    unknown = sorted(set(args.variants or []) - set(VARIANTS))
+    if unknown:
+        parser.error(f"unknown variants {', '.join(unknown)}; the variants: {', '.join(VARIANTS)}")
     for given in ([args.initial_state, args.case] if args.initial_state else []):
         if not given.is_file():
             parser.error(f"{given}: no such file")
@@ -338,7 +362,7 @@ def main(argv=None) -> int:
     loop_arguments = (0, n, grains, nbr_start, nbr, p, *arguments[5:])  # lo, hi, then as the caller's
     counted = contact_count(sim)
     touching = counted["pairs"] + counted["walls"]
-    names = ["engine", *(name for name in VARIANTS if not (args.moving and name in CUTS))]
+    names = ["engine", *(name for name in (args.variants or VARIANTS) if not (args.moving and name in CUTS))]
     loops = {name: build(name) for name in names}
 
     reference = forces_of(loops["engine"], loop_arguments)
