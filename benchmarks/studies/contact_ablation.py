@@ -300,9 +300,9 @@ def _moving_caller(loop):
 
 
 def time_moving(loops: dict, grains, n, nbr_start, nbr, p, counters, steps: int, repeats: int) -> dict:
-    """Per loop, µs per step of `steps` moving steps (kick, drift and the loop) from copies of the
-    same grains, interleaved rounds (CPU time); "kick_drift" is the kick and drift alone (the forces
-    held)."""
+    """Per loop, the CPU seconds per step of `steps` moving steps (kick, drift and the loop; one call
+    of the loop per step) from copies of the same grains, one entry per round, the loops interleaved;
+    "kick_drift" is the kick and drift alone (the forces held)."""
     runs = {name: _moving_caller(loop) for name, loop in loops.items()}
     runs["kick_drift"] = _moving_caller(_no_forces)
     times = {name: [] for name in runs}
