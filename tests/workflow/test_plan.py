@@ -227,6 +227,20 @@ def test_a_case_listed_in_the_cost_file_is_expected_to_take_its_cpu_seconds(tmp_
     assert plan.expected_cpu_seconds("h_vs", "gas.superficial_velocity~1") == 120.5
 
 
+def test_a_resumed_case_is_expected_to_take_the_cpu_seconds_of_its_whole_run(tmp_path):
+    # cpu_s is the job's last part (a run resumed from its checkpoint); case_cpu_s the whole run's
+    path = cost_file(tmp_path, ["simulate,h_default/base,130.0,270.0,120.5,",
+                                "simulate,h_vs/gas.superficial_velocity~2,330.0,270.0,300.0,2400.0",
+                                "simulate,h_vs/gas.superficial_velocity~3,90.0,270.0,80.0,nan"],
+                     header="rule,job,wall_s,max_rss_mb,cpu_s,case_cpu_s")
+    sweeps = {"h_default": single(), "h_vs": curve([2.0, 3.0])}
+    plan = Plan(config(sweeps, scheduling={"job_costs": str(path)}))
+    assert plan.expected_cpu_seconds("h_vs", "gas.superficial_velocity~2") == 2400.0
+    # unknown whole-run CPU (empty, or NaN): the job's own
+    assert plan.expected_cpu_seconds("h_default", "base") == 120.5
+    assert plan.expected_cpu_seconds("h_vs", "gas.superficial_velocity~3") == 80.0
+
+
 def test_a_case_not_in_the_cost_file_is_expected_to_take_the_models_time(tmp_path):
     path = cost_file(tmp_path, ["simulate,h_default/base,130.0,270.0,120.5"])
     # 4 s on a tube twice the papers' (1.05 m) at twice their mass flow: 4 x 3000 grains,
@@ -276,6 +290,8 @@ def test_identical_points_share_the_priority_of_their_case(tmp_path):
     (["h_default/base,1.0"], "name,cpu_s", r"scheduling.job_costs: .*timings.csv: no column rule, job"),
     (["simulate,h_default/base,slow"], "rule,job,cpu_s",
      r"scheduling.job_costs: .*timings.csv: job h_default/base: cpu_s 'slow' is not a number"),
+    (["simulate,h_default/base,1.0,slow"], "rule,job,cpu_s,case_cpu_s",
+     r"scheduling.job_costs: .*timings.csv: job h_default/base: case_cpu_s 'slow' is not a number"),
 ])
 def test_a_cost_file_that_cannot_be_read_is_refused_naming_the_key_and_path(tmp_path, rows, header,
                                                                            message):
@@ -290,6 +306,7 @@ def test_the_paper_configuration_reads_the_paper_runs_costs_and_ci_the_models():
     paper = yaml.safe_load((ROOT / "config/config.yaml").read_text())
     costs = paths.read_job_costs(paper["scheduling"]["job_costs"], ROOT)
     assert {"h_default/base", "v_default/base"} <= set(costs) and "(total)" not in costs
+    assert all(cost > 0 for cost in costs.values())
     # the CI cases bear some of the paper's names with other parameters: the model for all
     ci = yaml.safe_load((ROOT / "config/ci.yaml").read_text())
     assert ci["scheduling"] == {"job_costs": None}

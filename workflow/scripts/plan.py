@@ -242,10 +242,12 @@ def warm_sources(sweeps: Mapping, points: Mapping) -> dict[Key, Key]:
 
 
 def read_job_costs(path: str | None, root: str | Path | None = None) -> dict[str, float]:
-    """The cost file of `scheduling.job_costs` (a job timing table: columns rule, job, cpu_s, as
-    docs/reference/benchmarks/paper_run_timings.csv), a relative path taken from `root` (the
-    workflow's folder; None: the working directory): "<sweep>/<point>" -> cpu_s of its simulate
-    job; {} without a cost file."""
+    """The cost file of `scheduling.job_costs` (a job timing table: columns rule, job, cpu_s, and
+    optionally case_cpu_s, as docs/reference/benchmarks/paper_run_timings.csv), a relative path
+    taken from `root` (the workflow's folder; None: the working directory): "<sweep>/<point>" ->
+    CPU seconds of its simulate job; {} without a cost file. A row's `case_cpu_s` (the case's CPU
+    over every part of a run resumed from checkpoints) is used where it is known, its `cpu_s` (the
+    job's last part only) where it is empty or NaN."""
     if path is None:
         return {}
     path = Path(root or ".") / path
@@ -263,12 +265,16 @@ def read_job_costs(path: str | None, root: str | Path | None = None) -> dict[str
                         "rule, job, cpu_s, e.g. docs/reference/benchmarks/paper_run_timings.csv)")
     costs = {}
     for row in rows:
-        if row["rule"] == "simulate" and row["job"] != "(total)":
-            try:
-                costs[row["job"]] = float(row["cpu_s"])
-            except (TypeError, ValueError):
-                raise PlanError(f"{entry}: job {row['job']}: cpu_s {row['cpu_s']!r} is not a "
-                                "number") from None
+        if row["rule"] != "simulate" or row["job"] == "(total)":
+            continue
+        # timings.py writes an unknown case_cpu_s as an empty field (pandas: NaN)
+        given = (row.get("case_cpu_s") or "").strip().lower() not in ("", "nan")
+        column = "case_cpu_s" if given else "cpu_s"
+        try:
+            costs[row["job"]] = float(row[column])
+        except (TypeError, ValueError):
+            raise PlanError(f"{entry}: job {row['job']}: {column} {row[column]!r} is not a "
+                            "number") from None
     return costs
 
 
