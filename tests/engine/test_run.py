@@ -77,6 +77,17 @@ def test_snapshots_are_a_ragged_array_inside_the_window(short_run):
     assert np.all((x >= 0.0) & (x <= 0.015)) and counts[-1] > 0
 
 
+def test_a_shorter_run_writes_the_first_frames_of_a_longer_one(short_run, tmp_path):
+    # the duration only ends a run: a finished run cut at T is the run of duration T
+    # (benchmarks/studies/run_cap.py measures shorter caps on that)
+    out = tmp_path / "shorter.nc"
+    run_case(Case.from_yaml(CASE, SHORT + ["run.duration=0.3"]), out)
+    with xr.open_dataset(out) as ds:
+        assert ds.sizes["time"] == 31
+        for name in {**SERIES, **FIELDS}:
+            np.testing.assert_array_equal(ds[name].values, short_run[name].values[:31], err_msg=name)
+
+
 def test_bad_input_is_refused_before_any_work(tmp_path):
     out = tmp_path / "bad.nc"
     res = plugsim("run", str(CASE), "--out", str(out), "--set", "particles.friction=-1")
