@@ -10,12 +10,13 @@ the destination folder, cutting at `--cap` seconds the runs that went on beyond 
 runs until steady (`run.until_steady`, the curve cases: they would have stopped at a cap of
 `--cap`), with `--all` the fixed-duration ones too (the default cases and those whose consumers
 ask a series); `--keep` leaves the runs of the sweeps it names whole (`--all --keep h_default
-v_default`: the curve sweeps' `run.duration` set to the cap). A cut run keeps its frames up to the cap and says what a run stopped there would
-say: stop reason `max_duration` (until steady) or `duration`, no steady window, no block after
-the cap, and CPU and wall seconds pro rata of the simulated time (rough: filling the tube costs
-less per second than conveying). Its recorded configuration is left as it was, so that the
-workflow reads it as the planned case. Without `--cap` the files are copied whole (the baseline,
-analysed by the same code).
+v_default`: the curve sweeps' `run.duration` set to the cap). A run writes, up to any time, the
+frames of the same run stopped later, so a cut run is the run with that cap. It keeps its frames
+up to the cap and says what a run stopped there would say: stop reason `max_duration` (until
+steady) or `duration`, no steady window, no block after the cap, and CPU and wall seconds pro
+rata of the simulated time (rough: filling the tube costs less per second than conveying). Its
+recorded configuration is left as it was, so that the workflow reads it as the planned case.
+Without `--cap` the files are copied whole (the baseline, analysed by the same code).
 
 The warm-start sources (`base.nc`) are dated before the cases started from them, so that the
 workflow's analysis runs on them without running a case again. In a checkout of the repository,
