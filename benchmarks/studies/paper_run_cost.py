@@ -114,12 +114,12 @@ def list_schedule(costs: pd.Series, parent: dict[str, str | None], cores: int) -
     if cores < 1:
         raise ValueError(f"cores: {cores}; at least 1")
     priority = critical_paths(costs, parent)
-    waiting = {job for job in costs.index}
+    waiting = set(costs.index)
     finished: set[str] = set()
     running: list[tuple[float, str]] = []
     now = 0.0
     while waiting or running:
-        ready = sorted((j for j in waiting if parent.get(j) in finished or parent.get(j) not in costs),
+        ready = sorted((j for j in waiting if parent.get(j) in finished or parent.get(j) not in costs.index),
                        key=lambda j: (-priority[j], j))
         for job in ready[:cores - len(running)]:
             waiting.discard(job)

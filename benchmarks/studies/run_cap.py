@@ -49,11 +49,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import xarray as xr
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from analysis.casefile import run_cpu_seconds  # noqa: E402
+from analysis.casefile import config, run_cpu_seconds  # noqa: E402
 
 STEADY_ATTRS = ("steady_start", "steady_end", "steady_pressure_drop", "steady_pressure_drop_sem",
                 "steady_correlation_time", "steady_outflow", "steady_inflow")
@@ -62,14 +61,20 @@ TIME_ATTRS = ("cpu_time_s", "cpu_time_total_s", "wall_time_s")
 
 def until_steady(ds: xr.Dataset) -> bool:
     """Whether the run that wrote `ds` was to stop once steady (its recorded run.until_steady)."""
-    return bool(((yaml.safe_load(ds.attrs["config_yaml"]) or {}).get("run") or {}).get("until_steady", False))
+    return bool(config(ds).get("run.until_steady", False))
+
+
+def frames_to(ds: xr.Dataset, cap: float) -> int:
+    """How many of the frames of `ds` a run stopped at `cap` (s) writes."""
+    t = ds["time"].values.astype(float)
+    # frames are written every output.interval; a frame within a thousandth of one of the cap is kept
+    return int(np.searchsorted(t, cap + 1e-3 * float(t[1] - t[0]), side="right"))
 
 
 def cut(ds: xr.Dataset, cap: float) -> xr.Dataset:
     """`ds` with its frames up to `cap` (s) and the attributes of a run stopped there."""
     t = ds["time"].values.astype(float)
-    # frames are written every output.interval; a frame within a thousandth of one of the cap is kept
-    keep = int(np.searchsorted(t, cap + 1e-3 * float(t[1] - t[0]), side="right"))
+    keep = frames_to(ds, cap)
     out = ds.isel(time=slice(0, keep))
     ran, now = float(t[-1]), float(t[keep - 1])
     attrs = dict(ds.attrs)
@@ -90,9 +95,7 @@ def to_cut(ds: xr.Dataset, cap: float | None, every_run: bool, kept: bool = Fals
     left whole)."""
     if cap is None or kept:
         return False
-    t = ds["time"].values
-    beyond = float(t[-1]) > cap + 1e-3 * float(t[1] - t[0])
-    return beyond and (every_run or until_steady(ds))
+    return frames_to(ds, cap) < ds.sizes["time"] and (every_run or until_steady(ds))
 
 
 def write(ds: xr.Dataset, path: Path) -> None:
@@ -134,31 +137,33 @@ def print_comparison(table: pd.DataFrame) -> None:
               f"{r['pressure_drop_cut'] / 100:.2f} ± {r['pressure_drop_sem_cut'] / 100:.2f} hPa/m "
               f"({r['moved_in_baseline_se']:+.1f} baseline s.e., {r['moved_in_cut_se']:+.1f} cut s.e.)")
     moved = changed["moved_in_baseline_se"].abs()
+    ratios = (changed["pressure_drop_sem_cut"] / changed["pressure_drop_sem"]).dropna()
+    errors = f"{ratios.median():.2f}x the baseline's" if len(ratios) else "– (none to compare)"
     print(f"\n{len(table)} curve points, {len(changed)} changed; regime changed: "
           f"{int((table['regime'] != table['regime_cut']).sum())}; pressure drop moved by more "
           f"than 1 baseline s.e.: {int((moved > 1).sum())}, more than 2: {int((moved > 2).sum())}; "
-          f"the cut run's errors {np.nanmedian(changed['pressure_drop_sem_cut'] / changed['pressure_drop_sem']):.2f}x "
-          "the baseline's (median of the changed points); an error that did not converge (NaN): "
+          f"the cut run's errors {errors} (median of the changed points); an error that did not "
+          "converge (NaN): "
           f"{int(table['pressure_drop_sem'].isna().sum())} points in the baseline, "
           f"{int(table['pressure_drop_sem_cut'].isna().sum())} in the cut run")
 
 
 def main(argv=None) -> None:
-    if argv is None:
-        argv = sys.argv[1:]
-    if argv[:1] == ["--compare"]:
-        if len(argv) != 3:
-            sys.exit("usage: run_cap.py --compare BASELINE/results/curves CUT/results/curves")
-        print_comparison(compare_curves(Path(argv[1]), Path(argv[2])))
-        return
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("source", help="results/cases of a finished run")
-    ap.add_argument("dest", help="folder to write the case files to (results/cases of a checkout)")
+    ap.add_argument("source", nargs="?", help="results/cases of a finished run")
+    ap.add_argument("dest", nargs="?", help="folder to write the case files to (results/cases of a checkout)")
+    ap.add_argument("--compare", nargs=2, metavar=("BASELINE_CURVES", "CUT_CURVES"),
+                    help="compare the curve tables of two runs instead (results/curves of each)")
     ap.add_argument("--cap", type=float, help="cut at this simulated time, s (none: copy whole)")
     ap.add_argument("--all", action="store_true", help="cut the fixed-duration runs as well")
     ap.add_argument("--keep", nargs="+", default=[], metavar="SWEEP",
                     help="sweeps whose runs are left whole")
     args = ap.parse_args(argv)
+    if args.compare:
+        print_comparison(compare_curves(*map(Path, args.compare)))
+        return
+    if args.dest is None:
+        ap.error("give SOURCE and DEST (or --compare BASELINE_CURVES CUT_CURVES)")
     source, dest = Path(args.source), Path(args.dest)
     if args.cap is not None and not args.cap > 0:
         ap.error(f"--cap {args.cap}: a positive simulated time in seconds")

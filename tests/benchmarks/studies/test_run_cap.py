@@ -119,3 +119,16 @@ def test_compare_gives_each_points_move_in_both_runs_errors(study, tmp_path, cap
     assert ("3 curve points, 2 changed; regime changed: 1; pressure drop moved by more than 1 "
             "baseline s.e.: 2, more than 2: 0") in out
     assert "(NaN): 0 points in the baseline, 0 in the cut run" in out
+
+
+def test_compare_of_a_run_with_itself_changes_nothing(study, tmp_path, capsys):
+    (tmp_path / "h_vs.csv").write_text("point,regime,pressure_drop,pressure_drop_sem\na,slug,1000,50\n")
+    study.main(["--compare", str(tmp_path), str(tmp_path)])
+    out = capsys.readouterr().out
+    assert "1 curve points, 0 changed; regime changed: 0" in out and "(none to compare)" in out
+
+
+def test_without_dest_or_compare_the_usage_is_refused(study, source, capsys):
+    with pytest.raises(SystemExit):
+        study.main([str(source)])
+    assert "give SOURCE and DEST" in capsys.readouterr().err
