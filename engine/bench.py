@@ -22,7 +22,7 @@ import numpy as np
 
 from .case import Case
 from .feed import layer_template
-from .kernels import contacts, laws
+from .kernels import contacts, passes
 from .parser import OneLineParser
 from .simulation import Simulation
 
@@ -104,82 +104,70 @@ def contact_count(sim: Simulation) -> dict:
     return {"pairs": pairs, "walls": walls, "list_entries": int(start[n])}
 
 
-PASSES = ("walls", "compact", "gather", "pair_law", "scatter")
+PASSES = ("compact", "gather", "pair_law", "scatter", "walls")
 
 
 @nb.njit(cache=True)
-def _run_pass(which, calls, grains, nbr_start, nbr, p, pairs, blocks):
-    """`calls` times one pass of contact_forces (PASSES[which]) over the blocks (rows lo, hi, touching
-    pairs, inlet rows written)."""
-    optional = laws.optional_terms(p)
+def _run_passes(upto, calls, grains, n, nbr_start, nbr, nbr_i, p, pairs):
+    """`calls` times the passes of passes.contact_passes (without the optional terms) over every block
+    of list entries up to PASSES[upto] (0: compact; 3: compact, gather, pair law and scatter), or
+    (upto 4) the walls alone."""
+    pos, vel, omg = passes.flat_rows(grains.pos), passes.flat_rows(grains.vel), passes.flat_rows(grains.omg)
+    force, torque = passes.flat_rows(grains.force), passes.flat_rows(grains.torque)
+    implicit = p.implicit_spin > 0.0
     dia = 2.0 * p.radius
+    entries = nbr_start[n]
     for _ in range(calls):
-        for b in range(blocks.shape[0]):
-            lo, hi, m = blocks[b, 0], blocks[b, 1], blocks[b, 2]
-            if which == 0:
-                if optional:
-                    contacts._walls_optional(grains, lo, hi, p, pairs.walls)
-                else:
-                    contacts._walls_plain(grains, lo, hi, p, pairs.walls)
-            elif which == 1:
-                contacts.compact_touching(grains.pos, lo, hi, nbr_start, nbr, dia, pairs.pair_j, pairs.start,
-                                          pairs.rows)
-            elif which == 2:
-                if optional:
-                    contacts._gather_optional(grains, lo, hi, pairs.pair_j, pairs.start, pairs.rows)
-                else:
-                    contacts._gather_plain(grains, lo, hi, pairs.pair_j, pairs.start, pairs.rows)
-            elif which == 3:
-                if optional:
-                    contacts._pair_law_optional(m, p, pairs.rows)
-                else:
-                    contacts._pair_law_plain(m, p, pairs.rows)
-            else:
-                contacts.scatter(grains, lo, hi, p, pairs.pair_j, pairs.start, pairs.rows, pairs.walls, optional,
-                                 blocks[b, 3] > 0)
+        if upto == 4:
+            passes._walls_plain(grains, n, p, pos, vel, omg, force, torque, implicit)
+            continue
+        for lo in range(0, entries, passes.BLOCK):
+            m = passes._compact(lo, min(entries, lo + passes.BLOCK), pos, nbr_i, nbr, dia * dia, pairs.pair_i,
+                                pairs.pair_j)
+            if upto >= 1:
+                passes._gather_plain(m, pos, vel, omg, grains.in_feed, True, pairs.pair_i, pairs.pair_j, pairs.rows)
+            if upto >= 2:
+                passes._pair_law_plain(m, p, pairs.rows)
+            if upto >= 3:
+                passes._scatter_plain(m, force, torque, grains.viscous_damping, implicit, pairs.pair_i, pairs.pair_j,
+                                      pairs.rows)
 
 
 @nb.njit(cache=True)
-def _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs):
-    """`calls` times contact_forces (the single loop with empty work arrays, else the passes)."""
+def _run_forces(calls, grains, n, nbr_start, nbr, nbr_i, p, diag, chunks, pairs):
+    """`calls` times evaluate_contacts (the single loop with empty work arrays, else the passes)."""
     for _ in range(calls):
-        contacts.contact_forces(grains, n, nbr_start, nbr, p, diag, pairs)
+        contacts.evaluate_contacts(grains, n, nbr_start, nbr, nbr_i, p, diag, chunks, pairs)
 
 
 def time_contact_kernels(sim: Simulation, calls: int, repeats: int) -> dict:
     """Seconds per call of the one-thread contact forces alone, as the single loop and in passes,
-    and of each pass over all blocks of grains (PASSES), on the present state: medians of `repeats`
-    interleaved runs of `calls` calls each (called from compiled code), and the median per-run
-    ratio single loop / passes (passes_speedup)."""
-    n, p, grains, pairs = sim.n_particles, sim._p, sim._grains(), contacts.pair_buffers()
-    nbr_start, nbr, diag, chunks = sim._nbr_start, sim._nbr, sim._diag.copy(), sim._chunks
-    dia, cap = 2.0 * sim.model.radius, pairs.walls.shape[1]
-    blocks, lo = [], 0  # as contact_forces cuts them
-    while lo < n:
-        hi = lo
-        while hi < n and hi - lo < cap and nbr_start[hi + 1] - nbr_start[lo] <= cap:
-            hi += 1
-        m = contacts.compact_touching(grains.pos, lo, hi, nbr_start, nbr, dia, pairs.pair_j, pairs.start, pairs.rows)
-        inlet = (contacts._walls_optional if laws.optional_terms(p) else contacts._walls_plain)(grains, lo, hi, p,
-                                                                                                 pairs.walls)
-        blocks.append((lo, hi, m, int(inlet)))
-        lo = hi
-    blocks = np.array(blocks, dtype=np.int64)
-    single = contacts.pair_buffers(0)
-    runs = {"single_loop": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, single),
-            "passes": lambda: _run_forces(calls, grains, n, nbr_start, nbr, p, diag, pairs)}
+    and of each pass over all blocks (PASSES: compact, gather, pair law and scatter as the
+    differences of the passes run up to each, the walls alone), on the present state: medians of
+    `repeats` interleaved runs of `calls` calls each (called from compiled code), and the median
+    per-run ratio single loop / passes (passes_speedup)."""
+    n, p, grains = sim.n_particles, sim._p, sim._grains()
+    nbr_start, nbr, nbr_i, diag, chunks = sim._nbr_start, sim._nbr, sim._nbr_i, sim._diag.copy(), sim._chunks
+    pairs, single = passes.pair_buffers(), contacts.single_loop_buffers()
+    runs = {"single_loop": lambda: _run_forces(calls, grains, n, nbr_start, nbr, nbr_i, p, diag, chunks, single),
+            "passes": lambda: _run_forces(calls, grains, n, nbr_start, nbr, nbr_i, p, diag, chunks, pairs)}
     for k, name in enumerate(PASSES):
-        runs[name] = lambda k=k: _run_pass(k, calls, grains, nbr_start, nbr, p, pairs, blocks)
+        runs["upto_" + name] = lambda k=k: _run_passes(k, calls, grains, n, nbr_start, nbr, nbr_i, p, pairs)
     times = {name: [] for name in runs}
     for name, run in runs.items():
         run()  # compiled, caches warm
     for _ in range(repeats):  # interleaved, so that a change of the machine's load hits all alike
         for name, run in runs.items():
             times[name].append(_timed(run) / calls)
-    out = {name: statistics.median(t) for name, t in times.items()}
+    median = {name: statistics.median(t) for name, t in times.items()}
+    out = {"single_loop": median["single_loop"], "passes": median["passes"], "walls": median["upto_walls"]}
+    before = 0.0
+    for name in PASSES[:-1]:
+        out[name] = median["upto_" + name] - before
+        before = median["upto_" + name]
     out["passes_speedup"] = statistics.median(a / b for a, b in zip(times["single_loop"], times["passes"]))
-    contacts.evaluate_contacts(grains, n, nbr_start, nbr, p, diag, chunks, pairs)  # the state's forces as they were
-    out["blocks"] = len(blocks)
+    _run_forces(1, grains, n, nbr_start, nbr, nbr_i, p, diag, chunks, sim._pairs)  # the state's forces as they were
+    out["blocks"] = -(-int(nbr_start[n]) // passes.BLOCK)
     return out
 
 
@@ -280,7 +268,7 @@ def _timed(call) -> float:
 
 
 def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads: int = 1,
-        kernels: bool = False, passes: bool = False) -> dict:
+        kernels: bool = False, single_loop: bool = False) -> dict:
     """Build, settle and time the standard case; returns the numbers it prints.
 
     ns_per_contact: a whole step's time over the touching contacts (grain pairs plus cylinder and
@@ -288,12 +276,12 @@ def run(steps: int = 2000, repeats: int = 5, with_compile: bool = True, threads:
     alone and each of their passes, per call and per contact (kernels_s, kernels_ns_per_contact).
     """
     sim = settled_simulation(threads=threads)
-    sim.set_contact_passes(passes)
+    sim.set_contact_passes(not single_loop)
     rates = measure_rate(sim, steps, repeats)
     rate = statistics.median(rates)
     count = contact_count(sim)
     contacts = count["pairs"] + count["walls"]
-    result = {"threads": threads, "contact_passes": passes, "grains": sim.n_particles,
+    result = {"threads": threads, "contact_passes": not single_loop, "grains": sim.n_particles,
               "contacts_per_grain": round(contacts_per_grain(sim), 3),
               "time_step_s": sim.dt, "steps_per_repeat": steps, "repeats": repeats,
               "particle_steps_per_s_median": rate,
@@ -340,15 +328,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kernels", action="store_true",
                         help="also time the one-thread contact forces alone, single loop against passes, "
                              "and each pass")
-    parser.add_argument("--passes", action="store_true",
-                        help="time the steps with the contact forces in passes (Simulation.set_contact_passes)")
+    parser.add_argument("--single-loop", action="store_true",
+                        help="time the steps with the one-thread contact forces in the single loop instead of "
+                             "in passes (Simulation.set_contact_passes(False))")
     parser.add_argument("--gas", action="store_true",
                         help="also time the same packing with the gas on and split the cost per step")
     parser.add_argument("--write-lammps", metavar="DIR",
                         help="also write the settled packing (grains.data) and params.json for LAMMPS")
     args = parser.parse_args(argv)
     _check_arguments(parser, args)
-    result = run(args.steps, args.repeats, not args.no_compile, args.threads, args.kernels, args.passes)
+    result = run(args.steps, args.repeats, not args.no_compile, args.threads, args.kernels, args.single_loop)
     if args.gas:
         result["gas"] = gas_cost_split(args.steps, args.repeats)
     if args.write_lammps:
@@ -373,7 +362,8 @@ def main(argv: list[str] | None = None) -> int:
             k, ns = result["kernels_s"], result["kernels_ns_per_contact"]
             print(f"contact forces alone   single loop {k['single_loop'] * 1e6:.1f} us per call, "
                   f"{ns['single_loop']:.1f} ns per contact; in passes {k['passes'] * 1e6:.1f} us, "
-                  f"{ns['passes']:.1f} ns per contact ({k['blocks']} blocks): passes {k['passes_speedup']:.3f}x")
+                  f"{ns['passes']:.1f} ns per contact ({k['blocks']} blocks of list entries): passes "
+                  f"{k['passes_speedup']:.3f}x")
             print("  passes, ns/contact   " + ", ".join(f"{name} {ns[name]:.1f}" for name in PASSES))
         if "gas" in result:
             g = result["gas"]

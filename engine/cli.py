@@ -199,9 +199,9 @@ def _main(argv: list[str]) -> int:
                         "(same grains and tube diameter; another tube length or inclination needs "
                         "--set run.warm_start_any=true) instead of an empty tube")
     p.add_argument("--threads", type=int, default=1,
-                   help="threads for the contact forces (default 1; 2 run a horizontal case ~1.5x "
-                        "faster on 2 idle cores, a vertical one ~1.1x, docs/performance.md; results "
-                        "differ from 1 thread by rounding only)")
+                   help="threads for the contact forces (default 1; 2 split the single loop, which "
+                        "runs a horizontal case no faster than one thread's contact passes, for twice "
+                        "the CPU, docs/performance.md; results differ from 1 thread by rounding only)")
     p.set_defaults(func=_run)
     p = sub.add_parser("export", help="ParaView files of a case file's whole-tube grain snapshots "
                                       "(output.tube_snapshot_interval) and slice fields")

@@ -14,7 +14,8 @@ from .gas import GasField
 from .kernels import gas as gas_kernels
 from .kernels import indices
 from .kernels import slices as S
-from .kernels.contacts import PAIR_BLOCK, evaluate_contacts, pair_buffers
+from .kernels.contacts import evaluate_contacts, single_loop_buffers
+from .kernels.passes import pair_buffers
 from .kernels.state import Chunks, Grains, Neighbors
 from .kernels.stepper import advance, finish_step, rebuild
 from .parameters import BLOCK_TRAVEL, cell_counts, gas_parameters, grain_parameters
@@ -51,7 +52,7 @@ class Simulation:
 
     def __init__(self, case: Case, threads: int = 1):
         self.threads = check_threads(threads)
-        self.contact_passes = False  # set_contact_passes
+        self.contact_passes = True  # set_contact_passes
         self.case = case
         self.model = ContactModel.from_case(case)
         self.feed = Feed(case, self.model.mass, case["run.seed"])
@@ -77,7 +78,7 @@ class Simulation:
     def _neighbors(self) -> Neighbors:
         """The cell grid and neighbour list as the kernels take them."""
         return Neighbors(self._shape, self._cell_start, self._cell_of, self._order, self._tmp3, self._tmpi,
-                         self._nbr_start, self._nbr)
+                         self._nbr_start, self._nbr, self._nbr_i)
 
     def _initial_capacity(self) -> int:
         c = self.case
@@ -105,16 +106,20 @@ class Simulation:
             arrays[name] = new
         self.__dict__.update(arrays)
         self._cell_start = np.zeros(int(np.prod(self._shape)) + 1, dtype=np.int64)
-        self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.int64)
+        # 32-bit indices: the list is read at every step, half the bytes of 64-bit ones (1.35x the compaction)
+        self._nbr = np.zeros(PAIRS_PER_GRAIN * cap, dtype=np.uint32)
+        self._nbr_i = np.zeros_like(self._nbr)
         self._chunks = self._chunk_arrays(cap)
-        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
+        self._pairs = self._contact_buffers()
         self._dirty = True
 
     def __getstate__(self) -> dict:
-        """The pickled state (restart_state, checkpoints) leaves out the contact passes' work arrays:
-        every call rewrites them before reading."""
+        """The pickled state (restart_state, checkpoints) leaves out the contact passes' work arrays
+        (every call rewrites them before reading) and each list entry's grain (_nbr_i, which the
+        list starts give)."""
         state = dict(self.__dict__)
         state.pop("_pairs", None)
+        state.pop("_nbr_i", None)
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -122,15 +127,23 @@ class Simulation:
         if not hasattr(self._p, "_fields"):  # a state pickled with the parameters as vectors
             self._p = grain_parameters(self.case)
             self.gas.g = gas_parameters(self.case)
-        self.contact_passes = state.get("contact_passes", False)  # also a state pickled before them
-        self._pairs = pair_buffers(PAIR_BLOCK if self.contact_passes else 0)
+        self.contact_passes = state.get("contact_passes", True)  # also a state pickled before them
+        n = int(self._n[0])
+        self._nbr = self._nbr.astype(np.uint32, copy=False)  # a state pickled with 64-bit indices
+        self._nbr_i = np.zeros_like(self._nbr)
+        self._nbr_i[:self._nbr_start[n]] = np.repeat(np.arange(n), np.diff(self._nbr_start[:n + 1]))
+        self._pairs = self._contact_buffers()
 
     def set_contact_passes(self, on: bool) -> None:
-        """One thread: the contact forces in passes (True) or in the single loop (False, the default,
-        measured faster on the project's shared 2-core machines; docs/performance.md, "The contact
-        kernel"). The two differ in the last bit of the forces."""
+        """One thread: the contact forces in passes over flat lists (True, the default) or in the
+        single loop (False); docs/performance.md, "The contact kernel". The two differ in the last
+        bits of the forces."""
         self.contact_passes = bool(on)
-        self._pairs = pair_buffers(PAIR_BLOCK if on else 0)
+        self._pairs = self._contact_buffers()
+
+    def _contact_buffers(self):
+        """The work arrays of the one-thread contact kernel that contact_passes selects."""
+        return pair_buffers() if self.contact_passes else single_loop_buffers()
 
     def _chunk_arrays(self, cap: int) -> Chunks:
         """Thread work arrays of evaluate_contacts (spill rows are zero between calls); dummies for one thread."""
@@ -202,8 +215,8 @@ class Simulation:
     def _prepare(self) -> None:
         """Rebuild the neighbour list and evaluate forces after the arrays were changed."""
         self._rebuild()
-        evaluate_contacts(self._grains(), int(self._n[0]), self._nbr_start, self._nbr, self._p, self._diag,
-                          self._chunks, self._pairs)
+        evaluate_contacts(self._grains(), int(self._n[0]), self._nbr_start, self._nbr, self._nbr_i, self._p,
+                          self._diag, self._chunks, self._pairs)
         self._dirty = False
 
     def _rebuild(self) -> None:
@@ -216,7 +229,8 @@ class Simulation:
 
     def _grow_neighbor_list(self) -> None:
         """A neighbour-list buffer twice as long (at least 1024 entries: an empty one grows too)."""
-        self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.int64)
+        self._nbr = np.zeros(max(2 * len(self._nbr), 1024), dtype=np.uint32)
+        self._nbr_i = np.zeros_like(self._nbr)
 
     def advance(self, seconds: float) -> None:
         """Advance by `seconds` of simulated time (rounded to whole time steps)."""

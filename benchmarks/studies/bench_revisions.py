@@ -9,8 +9,12 @@ warmed up once (compiling its kernels, up to two minutes each). Then every round
 per revision in turn, each settling the standard dense case (engine.bench) and reporting:
 particle-steps per second over --steps steps, ns per touching contact of a whole step (grain pairs
 plus wall contacts), and the contact forces alone (evaluate_contacts, --steps // 4 calls on the
-settled state), µs per call and ns per contact. Printed: medians over the rounds, and the median of
-the per-round ratios to the first revision (the figure that carries over between machines).
+settled state, in the revision's default one-thread kernel: the single loop before the contact
+passes became the default, the passes since), µs per call and ns per contact. The probe reads the
+revision's signature of evaluate_contacts off its Simulation (each list entry's grain `_nbr_i`
+and the one-thread work arrays `_pairs` are passed only where the revision has them). Printed:
+medians over the rounds, and the median of the per-round ratios to the first revision (the figure
+that carries over between machines).
 """
 
 from __future__ import annotations
@@ -43,7 +47,12 @@ pairs = int(np.count_nonzero(np.einsum("ij,ij->i", off, off) < d * d))
 inner = sim.case["tube.diameter"] / 2 - r
 walls = int(np.count_nonzero(dynamic & (pos[:, 1] ** 2 + pos[:, 2] ** 2 > inner * inner)))
 walls += int(np.count_nonzero(dynamic & (pos[:, 0] < r)))
-args = (sim._grains(), n, sim._nbr_start, sim._nbr, sim._p, sim._diag.copy(), sim._chunks)
+# evaluate_contacts(grains, n, nbr_start, nbr, [nbr_i,] p, diag, chunks[, pairs]): each list entry's
+# grain (nbr_i) and the one-thread work arrays (pairs) only in the revisions that have them
+args = (sim._grains(), n, sim._nbr_start, sim._nbr)
+if hasattr(sim, "_nbr_i"):
+    args += (sim._nbr_i,)
+args += (sim._p, sim._diag.copy(), sim._chunks)
 if hasattr(sim, "_pairs"):
     args += (sim._pairs,)
 evaluate_contacts(*args)

@@ -11,8 +11,9 @@ tube is in steady flow rather than filling) and advanced 5 ms to settle. The var
 advanced by `--chunk` simulated seconds in turn, `--rounds` times (interleaved in one process, so
 that a load change hits every variant alike). A variant may set `threads=N` (not a case key: the
 contact forces on N threads; time threaded variants one per process: interleaved with a one-thread
-variant they lose most of their gain, docs/performance.md "Threads") and `passes=1` (not a case key
-either: the contact forces in passes, Simulation.set_contact_passes). Reported per variant: the
+variant they lose most of their gain, docs/performance.md "Threads") and `passes=0` (not a case key
+either: the one-thread contact forces in the single loop instead of in passes, the default, which
+`passes=1` keeps; Simulation.set_contact_passes). Reported per variant: the
 median CPU seconds of the process per simulated second (all threads; one thread: what an idle core
 takes as wall time) and the median wall seconds, each with its median per-round ratio to the first
 variant, the mean number of steps between neighbour-list rebuilds and the list entries per grain.
@@ -46,13 +47,15 @@ SETTLE = 0.005  # s advanced before timing: compiles the kernels and lets the wa
 
 def prepare(case_file: str, initial_state: str, variant: str) -> Simulation:
     """The case with the variant's overrides (`threads=N`: N threads for the contact forces,
-    `passes=1`: the contact forces in passes), started from the grains of `initial_state`."""
+    `passes=0`: the one-thread contact forces in the single loop, `passes=1`: in passes, the
+    default), started from the grains of `initial_state`."""
     tokens = variant.split()
     engine = {name: [int(t.split("=", 1)[1]) for t in tokens if t.startswith(f"{name}=")]
               for name in ("threads", "passes")}
     case = Case.from_yaml(case_file, [t for t in tokens if t.split("=", 1)[0] not in engine])
     sim = Simulation(case, engine["threads"][-1] if engine["threads"] else 1)
-    sim.set_contact_passes(bool(engine["passes"] and engine["passes"][-1]))
+    if engine["passes"]:  # else the engine's default (the passes)
+        sim.set_contact_passes(bool(engine["passes"][-1]))
     sim.add_particles(*read_initial_state(initial_state, case))
     sim.advance(SETTLE)
     return sim

@@ -1,40 +1,53 @@
 #!/usr/bin/env python
-"""Where the one-thread contact loop's time goes: the loop timed against copies of itself with
-parts cut out or rewritten.
+"""Where the single contact loop's time goes: the loop timed against copies of itself with parts
+cut out or rewritten.
 
     python benchmarks/studies/contact_ablation.py [--calls 300] [--repeats 7] [--json OUT.json] \
         [--initial-state results/cases/h_default/base.nc --case config/cases/horizontal.yaml] \
         [--moving STEPS] [--variants NAME ...]
 
 Each variant is the engine's single loop (`_contacts_range_with` in engine/kernels/contacts.py,
-without the optional terms) compiled from its source with one edit, so that it measures the
-loop as it is; an edit whose anchor is no longer in the source stops the study with its name.
+without the optional terms: the loop of each chunk on threads, and on one thread with
+Simulation.set_contact_passes(False); the one-thread default, the contact passes of
+engine/kernels/passes.py, is not edited here) compiled from its source (and that of laws.py) with
+one edit, so that it measures the loop as it is; an edit whose anchor is no longer in the source
+stops the study with its name. The loop's pair law is laws.pair_normal (the normal force, from the
+centre offset as it is: one square root and one division) then laws.surface_forces (the
+tangential law, laws.slip_force, and the torques); its cylinder contact is laws.cylinder_contact.
+
 On the settled standard packing of `plugsim bench` (engine.bench.settled_simulation), or with
 --initial-state on a conveying state (the final grains of a case file as a warm start of --case,
-advanced 5 ms with the gas and the feed on), called from compiled code, interleaved (each round every variant once; CPU time of the process), ns per
-touching contact (grain pairs and wall contacts):
+advanced 5 ms with the gas and the feed on), called from compiled code, interleaved (each round
+every variant once; CPU time of the process), ns per touching contact (grain pairs and wall
+contacts):
 
   engine          the loop as it is;
   distance_only   the list entries' distance tests alone (no law, no walls): the loop's skeleton;
   no_walls        the pairs in full, the cylinder and inlet contacts cut out;
-  normal_only     up to the normal force of each pair (its square root and division), no
-                  tangential law, no scatter; walls in full;
+  normal_only     up to the normal force of each pair (laws.pair_normal: its square root and
+                  division), no tangential law (laws.surface_forces), no scatter; walls in full;
   no_scatter      the pairs' law in full, the reactions on the partner j not stored;
-  compacted       per grain, the touching entries compacted first (offsets and distances to
-                  small work arrays, branch-free), then the law over them (bits unchanged);
-  signed_index    the partner index as a signed integer, as numba indexes it by default (the
-                  wrap-around of negative indices at every load and store; bits unchanged);
-  root_both_branches  the tangential law's branch chosen on |v_t| = sqrt(|v_t|^2) instead of on
-                  squares, so that a viscous contact too takes a square root and a division
-                  (the same law as the engine's; the forces differ in the last bits);
-  branchless      the pair's law in the laws' `branchless` form (selects instead of its branches;
-                  bits unchanged);
+  compacted       per grain, the touching entries compacted first (their offsets to small work
+                  arrays, branch-free), then the law over them, |D|^2 recomputed from the stored
+                  offsets (bits unchanged; the compaction loop's |D|^2, stored, differs from the
+                  one the engine's law sees in the last bits: LLVM contracts it differently);
+  signed_index    the partner index as a signed integer (int64; the list holds uint32), as numba
+                  indexes it by default (the wrap-around of negative indices at every load and
+                  store; bits unchanged);
+  root_both_branches  the tangential law's branch (laws.slip_force, the walls' too) chosen on
+                  |v_t| = sqrt(|v_t|^2) instead of on squares, so that a viscous contact too takes
+                  a square root and a division (the same law as the engine's; the forces differ in
+                  the last bits);
+  branchless      the pair's law (laws.surface_forces) in the laws' `branchless` form
+                  (selects instead of its branches; bits unchanged);
   compacted_index  per grain, only the touching partners' indices compacted first, their offsets
                   recomputed in the law's loop (bits unchanged);
   compacted_branchless  both: no branch left between a grain's touching pairs, so that the core
                   could overlap one pair's chain with the next's (bits unchanged);
   single_law      a pair's law in single precision (float32) from the double offsets, velocities
-                  and spin sums, its forces and torques summed in double; the walls in double.
+                  and spin sums (laws.pair_normal's arithmetic, but the overlap from the double
+                  d^2 - |D|^2, then laws.surface_forces), its forces and torques summed in
+                  double; the walls in double.
 
 A state called repeatedly is cheaper than one that changes every step (a step on moving grains costs
 1.05-1.19x the same loop on held ones, benchmarks/studies/step_split.py). With --moving
@@ -73,8 +86,9 @@ SOURCE = Path(contacts.__file__)
 LAWS = Path(laws.__file__)
 
 DISTANCE = """                touching += 1
-                dist = math.sqrt(dist2)"""
-WALLS = "            if not in_feed[i]:\n                rho2"
+                vrx = vel[i, 0] - vel[j, 0]"""
+WALLS = "            if not in_feed[i]:\n                if yi * yi + zi * zi > inner * inner:"
+NO_WALLS = "            if in_feed[i] > 1:\n                if yi * yi + zi * zi > inner * inner:"  # in_feed: 0 or 1
 NORMAL = """                if fn <= 0.0:
                     continue
                 fx, fy, fz"""
@@ -101,7 +115,6 @@ COMPACTED = """            m = 0
                 bx[m] = dx
                 by[m] = dy
                 bz[m] = dz
-                b2[m] = dist2
                 m += not (dist2 >= dia * dia)
             touching += m
             for t in range(m):
@@ -109,7 +122,7 @@ COMPACTED = """            m = 0
                 dx = bx[t]
                 dy = by[t]
                 dz = bz[t]
-                dist2 = b2[t]
+                dist2 = dx * dx + dy * dy + dz * dz  # as the engine's law sees it (a stored one rounds differently)
 """
 COMPACTED_INDEX = """            m = 0
             for k in range(nbr_start[i], nbr_start[i + 1]):
@@ -136,7 +149,6 @@ WORK_ARRAYS = WORK_ARRAYS_AT + """        longest = 1
         bx = np.empty(longest)
         by = np.empty(longest)
         bz = np.empty(longest)
-        b2 = np.empty(longest)
 """
 TANGENTIAL_TAIL = """    if viscous:
         return -gt * vtx, -gt * vty, -gt * vtz, gt
@@ -149,35 +161,36 @@ ROOT_BOTH_BRANCHES = """    vt = math.sqrt(vt2)
     ft = min(fc, fv)
     s = -ft / vt
     return s * vtx, s * vty, s * vtz, gt if fv < fc else 0.0"""
-PAIR_LAW = """                dist = math.sqrt(dist2)
-                inv = 1.0 / dist
-                nx = dx * inv
-                ny = dy * inv
-                nz = dz * inv
-                delta = dia - dist
+PAIR_LAW = """                vrx = vel[i, 0] - vel[j, 0]
+                vry = vel[i, 1] - vel[j, 1]
+                vrz = vel[i, 2] - vel[j, 2]
+                fn, inv, a, vd, delta = laws.pair_normal(dx, dy, dz, dist2, vrx, vry, vrz, pair)
                 if in_feed[i] or in_feed[j]:
                     max_feed = max(max_feed, delta)
                 else:
                     max_overlap = max(max_overlap, delta)
-                vrx = vel[i, 0] - vel[j, 0]
-                vry = vel[i, 1] - vel[j, 1]
-                vrz = vel[i, 2] - vel[j, 2]
-                fn = laws.normal_force(delta, vrx * nx + vry * ny + vrz * nz, pair)
                 if fn <= 0.0:
                     continue
                 fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
-                    fn, nx, ny, nz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
+                    fn, inv, a, vd, dx, dy, dz, vrx, vry, vrz, omg[i, 0] + omg[j, 0], omg[i, 1] + omg[j, 1],
                     omg[i, 2] + omg[j, 2], omg[i, 0] - omg[j, 0], omg[i, 1] - omg[j, 1], omg[i, 2] - omg[j, 2],
                     pair, optional)"""
 # The pair's law in float32 from the double offsets, velocities and spin sums, under new names:
 # numba gives a name one type, so a name shared with the double wall code would be promoted back.
-# The relative spin is passed as zeros: the variant is compiled without the optional terms.
+# laws.pair_normal's arithmetic is written out, since its overlap 2r - |D| would be a float32
+# difference; the relative spin is passed as zeros: the variant is compiled without the optional terms.
 PAIR_LAW_SINGLE = """                f32 = nb.float32
-                dist = math.sqrt(f32(dist2))
-                inv = f32(1.0) / dist
-                nx = f32(dx) * inv
-                ny = f32(dy) * inv
-                nz = f32(dz) * inv
+                dxs = f32(dx)
+                dys = f32(dy)
+                dzs = f32(dz)
+                vrx = f32(vel[i, 0] - vel[j, 0])
+                vry = f32(vel[i, 1] - vel[j, 1])
+                vrz = f32(vel[i, 2] - vel[j, 2])
+                d2s = f32(dist2)
+                dist = math.sqrt(d2s)
+                a = f32(1.0) / d2s
+                inv = dist * a
+                vd = vrx * dxs + vry * dys + vrz * dzs
                 # dia - dist from the double dia^2 - dist^2 (series to second order, relative error
                 # (overlap/d)^2/2); a float32 difference dia - dist loses 0.2 % of the largest force
                 q = f32(dia * dia - dist2)
@@ -186,15 +199,13 @@ PAIR_LAW_SINGLE = """                f32 = nb.float32
                     max_feed = max(max_feed, f32(overlap))
                 else:
                     max_overlap = max(max_overlap, f32(overlap))
-                vrx = f32(vel[i, 0] - vel[j, 0])
-                vry = f32(vel[i, 1] - vel[j, 1])
-                vrz = f32(vel[i, 2] - vel[j, 2])
-                fnp = laws.normal_force(overlap, vrx * nx + vry * ny + vrz * nz, pair_single)
+                fnp = laws.normal_force(overlap, vd * inv, pair_single)
                 if fnp <= f32(0.0):
                     continue
                 fx, fy, fz, tx, ty, tz, tjx, tjy, tjz, g = laws.surface_forces(
-                    fnp, nx, ny, nz, vrx, vry, vrz, f32(omg[i, 0] + omg[j, 0]), f32(omg[i, 1] + omg[j, 1]),
-                    f32(omg[i, 2] + omg[j, 2]), f32(0.0), f32(0.0), f32(0.0), pair_single, optional)"""
+                    fnp, inv, a, vd, dxs, dys, dzs, vrx, vry, vrz, f32(omg[i, 0] + omg[j, 0]),
+                    f32(omg[i, 1] + omg[j, 1]), f32(omg[i, 2] + omg[j, 2]), f32(0.0), f32(0.0), f32(0.0),
+                    pair_single, optional)"""
 PAIR_CONSTANTS = "        pair = laws.pair_constants(p)\n"
 PAIR_CONSTANTS_SINGLE = PAIR_CONSTANTS + """        f32 = nb.float32
         pair_single = laws.Contact(f32(pair.radius), f32(pair.stiffness), f32(pair.damping), f32(pair.friction),
@@ -212,16 +223,17 @@ CUTS = ("distance_only", "no_walls", "normal_only", "no_scatter")
 # name: (edits of contacts.py's loop, edits of laws.py, same bits as the engine)
 VARIANTS = {
     "distance_only": ([(DISTANCE, "                touching += 1\n                fxi += dist2\n                continue\n"
-                                  "                dist = math.sqrt(dist2)"),
-                       (WALLS, "            if in_feed[i] > 1:\n                rho2")], [], False),
-    "no_walls": ([(WALLS, "            if in_feed[i] > 1:\n                rho2")], [], False),
-    "normal_only": ([(NORMAL, "                if fn <= 0.0:\n                    continue\n                fxi += fn * nx\n"
-                              "                fyi += fn * ny\n                fzi += fn * nz\n                continue\n"
+                                  "                vrx = vel[i, 0] - vel[j, 0]"),
+                       (WALLS, NO_WALLS)], [], False),
+    "no_walls": ([(WALLS, NO_WALLS)], [], False),
+    "normal_only": ([(NORMAL, "                if fn <= 0.0:\n                    continue\n"
+                              "                fxi += fn * inv * dx\n                fyi += fn * inv * dy\n"
+                              "                fzi += fn * inv * dz\n                continue\n"
                               "                fx, fy, fz")], [], False),
     "no_scatter": ([(SCATTER_J, "                if j < 0:\n                    force[j, 0] -= fx"),
                     (SCATTER_SPILL, "                elif j < -1:\n                    spill_force[j, 0] -= fx")], [], False),
     "compacted": ([(LIST_LOOP, COMPACTED), (WORK_ARRAYS_AT, WORK_ARRAYS)], [], True),
-    "signed_index": ([("                j = nb.uint64(nbr[k])\n", "                j = nbr[k]\n"),
+    "signed_index": ([("                j = nb.uint64(nbr[k])\n", "                j = nb.int64(nbr[k])\n"),
                       ("                if j < end:\n", "                if j < hi:\n"),
                       ("                    top = max(top, nb.int64(j) + 1)\n", "                    top = max(top, j + 1)\n")],
                      [], True),

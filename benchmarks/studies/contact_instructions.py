@@ -1,10 +1,14 @@
 #!/usr/bin/env python
-"""Instructions per contact of the one-thread contact loop and of its ablation variants, counted
-by valgrind, and the instructions per cycle they run at.
+"""Instructions per contact of the single contact loop and of its ablation variants, counted by
+valgrind, and the instructions per cycle they run at.
 
     python benchmarks/studies/contact_instructions.py [--variants engine normal_only ...] \
         [--calls 300] [--json OUT.json]
 
+The loop is contacts._contacts_range_with without the optional terms (the loop of each chunk on
+threads, and on one thread with Simulation.set_contact_passes(False); not the one-thread default,
+the contact passes of engine/kernels/passes.py), with its laws (laws.pair_normal,
+laws.surface_forces, laws.cylinder_contact, laws.wall_contact) from a copy of laws.py.
 On the settled standard packing of `plugsim bench` (as contact_ablation.py), each variant of
 contact_ablation.py is written to a module in a temporary directory, compiled once natively (numba
 caches it there), then its process runs under `valgrind --tool=cachegrind` twice, with 1 and with

@@ -37,15 +37,16 @@ taken from the permuted stored forces.
 
 Timed in one loop of `--repeats` rounds, each round every (measurement, order) once in a shuffled
 order, so that a change of the machine's load hits all alike (CPU time of the process; the wall
-time is in the JSON): the contact forces alone, single loop (the engine's default) and in passes
-(`plugsim bench --kernels`'s compiled loop); steps through Simulation.advance (the entry point of
-`plugsim bench`), in windows that start from a copy of the order's state and end before its first
-neighbour rebuild (which would sort the rows); the engine's rebuild (sort and list) started from
-each order; sort_and_compact alone on the `engine` rows (the sort's own cost per rebuild). Reported:
-medians over the rounds, and per order the median of each round's ratio to `engine`; `engine` and
-`cell` hold the same or nearly the same rows, so their ratio shows the noise. Per order also how
-far apart contact partners are stored: the mean and 90th percentile of |i - j| over the touching
-pairs; and the steps between rebuilds, over INTERVAL_TIME from the state.
+time is in the JSON): the contact forces alone, in the single loop (`forces`) and in passes
+(`forces_passes`, the engine's one-thread default), both through `plugsim bench --kernels`'s
+compiled loop; steps through Simulation.advance (the entry point of `plugsim bench`, with the
+engine's default contact kernel), in windows that start from a copy of the order's state and end
+before its first neighbour rebuild (which would sort the rows); the engine's rebuild (sort and
+list) started from each order; sort_and_compact alone on the `engine` rows (the sort's own cost
+per rebuild). Reported: medians over the rounds, and per order the median of each round's ratio
+to `engine`; `engine` and `cell` hold the same or nearly the same rows, so their ratio shows the
+noise. Per order also how far apart contact partners are stored: the mean and 90th percentile of
+|i - j| over the touching pairs; and the steps between rebuilds, over INTERVAL_TIME from the state.
 
 All three states (1.5 to 2.5 minutes on the loaded 2-core machine; docs/performance.md, "Grain order
 in memory"):
@@ -74,6 +75,7 @@ from engine import Case, Simulation  # noqa: E402
 from engine.simulation import SimulationError  # noqa: E402
 from engine.bench import _run_forces, settled_simulation  # noqa: E402
 from engine.kernels import contacts, indices  # noqa: E402
+from engine.kernels import passes as contact_passes  # noqa: E402
 from engine.kernels.neighbors import sort_and_compact  # noqa: E402
 from engine.kernels.stepper import rebuild  # noqa: E402
 from engine.run import read_initial_state  # noqa: E402
@@ -83,7 +85,7 @@ ORDERS = ("engine", "id", "random", "cell", "morton", "x")
 PER_GRAIN = ("_pos", "_vel", "_omg", "_force", "_drag", "_torque", "_viscous_damping", "_wall_normal", "_gid",
              "_in_feed", "_pos_ref", "_tmp3", "_tmpi", "_cell_of", "_order")
 # arrays of a Simulation that are not one row per grain (the list is rewritten by `permute`)
-NOT_PER_GRAIN = ("_p", "_shape", "_n", "_counters", "_diag", "_cell_start", "_nbr", "_nbr_start")
+NOT_PER_GRAIN = ("_p", "_shape", "_n", "_counters", "_diag", "_cell_start", "_nbr", "_nbr_i", "_nbr_start")
 SETTLE = 0.005        # s a warm start is advanced before the study (as case_cost.py)
 WINDOW_STEPS = 400    # longest timed window of steps
 STEP_BUDGET = 1.2e6   # grain-steps per timing of the steps (windows summed)
@@ -150,18 +152,20 @@ def per_grain_arrays(sim: Simulation) -> list[str]:
 
 
 def list_pairs(sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """The half neighbour list as (row i, row j) arrays, in list order."""
+    """The half neighbour list as (row i, row j) arrays (int64), in list order."""
     n = int(sim._n[0])
     start = sim._nbr_start[:n + 1]
-    return np.repeat(np.arange(n), np.diff(start)), sim._nbr[:start[n]].copy()
+    return np.repeat(np.arange(n), np.diff(start)), sim._nbr[:start[n]].astype(np.int64)
 
 
 def set_list(sim: Simulation, i: np.ndarray, j: np.ndarray) -> None:
-    """Write the pairs (i, j) as the half list: each under its lower row, partners ascending."""
+    """Write the pairs (i, j) as the half list: each under its lower row, partners ascending, and
+    each entry's grain (the lower row, _nbr_i; the contact passes read it)."""
     n = int(sim._n[0])
     lo, hi = np.minimum(i, j), np.maximum(i, j)
     key = np.lexsort((hi, lo))
     sim._nbr[:len(key)] = hi[key]
+    sim._nbr_i[:len(key)] = lo[key]
     sim._nbr_start[0] = 0
     sim._nbr_start[1:n + 1] = np.cumsum(np.bincount(lo, minlength=n))
 
@@ -196,8 +200,8 @@ def ready(sim: Simulation, steps: int) -> None:
 
 def evaluate(sim: Simulation) -> None:
     """One evaluation of the contact forces (the engine's, on its present list)."""
-    contacts.evaluate_contacts(sim._grains(), int(sim._n[0]), sim._nbr_start, sim._nbr, sim._p, sim._diag,
-                               sim._chunks, sim._pairs)
+    contacts.evaluate_contacts(sim._grains(), int(sim._n[0]), sim._nbr_start, sim._nbr, sim._nbr_i, sim._p,
+                               sim._diag, sim._chunks, sim._pairs)
 
 
 def overlap_energy(sim: Simulation) -> float:
@@ -337,10 +341,10 @@ def forces_runs(sims: dict, passes: bool) -> tuple[dict, int]:
 
     def run(sim):
         work = copy.deepcopy(sim)
-        pairs = contacts.pair_buffers() if passes else contacts.pair_buffers(0)
+        pairs = contact_passes.pair_buffers() if passes else contacts.single_loop_buffers()
         grains, n, diag = work._grains(), int(work._n[0]), work._diag.copy()
         c0, w0 = _clock()
-        _run_forces(calls, grains, n, work._nbr_start, work._nbr, work._p, diag, pairs)
+        _run_forces(calls, grains, n, work._nbr_start, work._nbr, work._nbr_i, work._p, diag, work._chunks, pairs)
         c1, w1 = _clock()
         return c1 - c0, w1 - w0
 

@@ -10,9 +10,10 @@ it is kept (engine/kernels/neighbors.py). `grain_by_grain` below is the form bef
 finds its cell and walks the 14 cells of its stencil one by one, branching on each test. Both are
 called on the same sorted grains (the standard dense packing of `plugsim bench`, or CASE.yaml
 started from the grains at the end of CASE_FILE.nc and advanced 5 ms, then re-sorted), --calls
-times per round in turn. Reported: whether the two lists are identical (entries and order), µs
-per build of each (medians over the rounds) and their per-round ratio, then the case advanced
-2 ms seven times: µs per step, steps per rebuild, and the share of a step the build takes.
+times per round in turn. Reported: whether the two lists are identical (entries, each entry's
+grain and their order), µs per build of each (medians over the rounds) and their per-round ratio,
+then the case advanced 2 ms seven times: µs per step, steps per rebuild, and the share of a step
+the build takes.
 
     python benchmarks/studies/neighbor_build.py config/cases/vertical.yaml \\
         --initial-state results/cases/v_default/base.nc
@@ -41,8 +42,9 @@ SETTLE = 0.005  # s advanced from the initial state before timing
 
 
 @nb.njit  # not cached: the tests import this file under another module name than a run does
-def grain_by_grain(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
-    """The build before: per grain its cell, the 14 cells of its half stencil, a branch per test."""
+def grain_by_grain(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr, nbr_i):
+    """The build before: per grain its cell, the 14 cells of its half stencil, a branch per test
+    (each entry's grain written to nbr_i as well, as the engine's build does)."""
     cut = 2.0 * p.radius + p.skin
     cut2 = cut * cut
     ncx = shape[indices.NCX]
@@ -70,6 +72,7 @@ def grain_by_grain(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
                             if k >= cap:
                                 return -1
                             nbr[k] = j
+                            nbr_i[k] = i
                             k += 1
     nbr_start[n] = k
     return k
@@ -88,19 +91,19 @@ def prepare(case_file: str | None, initial_state: str | None) -> Simulation:
     return sim
 
 
-def lists_of(build, sim: Simulation) -> tuple[np.ndarray, np.ndarray]:
-    """(nbr_start, nbr) that `build` makes of the simulation's sorted grains."""
+def lists_of(build, sim: Simulation) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(nbr_start, nbr, nbr_i) that `build` makes of the simulation's sorted grains."""
     n = int(sim._n[0])  # the feed's grains included
-    start, nbr = np.zeros_like(sim._nbr_start), np.zeros_like(sim._nbr)
-    k = build(sim._pos, sim._in_feed, n, sim._p, sim._shape, sim._cell_start, start, nbr)
+    start, nbr, nbr_i = np.zeros_like(sim._nbr_start), np.zeros_like(sim._nbr), np.zeros_like(sim._nbr_i)
+    k = build(sim._pos, sim._in_feed, n, sim._p, sim._shape, sim._cell_start, start, nbr, nbr_i)
     assert k >= 0, "the list buffer is too small"
-    return start[:n + 1], nbr[:k]
+    return start[:n + 1], nbr[:k], nbr_i[:k]
 
 
 def time_builds(sim: Simulation, calls: int, rounds: int) -> dict:
     """µs per build of the engine's and the grain-by-grain form, interleaved rounds."""
-    start, nbr = np.zeros_like(sim._nbr_start), np.zeros_like(sim._nbr)
-    args = (sim._pos, sim._in_feed, int(sim._n[0]), sim._p, sim._shape, sim._cell_start, start, nbr)
+    start, nbr, nbr_i = np.zeros_like(sim._nbr_start), np.zeros_like(sim._nbr), np.zeros_like(sim._nbr_i)
+    args = (sim._pos, sim._in_feed, int(sim._n[0]), sim._p, sim._shape, sim._cell_start, start, nbr, nbr_i)
     times = {"engine": [], "grain_by_grain": []}
     for _ in range(rounds):
         for name, build in (("engine", build_neighbor_list), ("grain_by_grain", grain_by_grain)):

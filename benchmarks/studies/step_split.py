@@ -19,7 +19,8 @@ arrays, in µs per step:
   - sort and build: the two halves of a rebuild, once per rebuild interval;
   - deposit, fields, sources, solve, gradient, drag: the gas coupling (`gas.couple`'s kernels), once
     per `numerics.gas_interval` steps;
-  - contacts: the contact forces (`evaluate_contacts`), every step;
+  - contacts: the contact forces (`evaluate_contacts`: the simulation's kernel, on one thread the
+    contact passes by default), every step;
 - `together`: the held step less the parts' sum (the loop's own work, the parts one after another
   instead of each repeated on warm caches);
 - `motion`: the step less the held step: what grains that move cost beyond the same arithmetic on
@@ -121,7 +122,7 @@ def part_calls(sim: Simulation) -> dict:
     p = sim._p
     grains = Grains(*[a.copy() for a in sim._grains()])
     frozen = p._replace(dt=0.0)  # kick and drift by 0: the same arithmetic, the grains stay put
-    shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = sim._neighbors()
+    shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, nbr_i = sim._neighbors()
     sorted_grains = tuple(a.copy() for a in (grains.pos, grains.vel, grains.omg, grains.drag, grains.gid,
                                              grains.in_feed))
     counters, diag = sim._counters.copy(), sim._diag.copy()
@@ -130,11 +131,11 @@ def part_calls(sim: Simulation) -> dict:
         "sort": (sort_and_compact, sorted_grains + (n, p, shape, cell_start.copy(), cell_of, order, tmp3, tmpi,
                                                     counters)),
         "build": (build_neighbor_list, (grains.pos, grains.in_feed, n, p, shape, cell_start, nbr_start.copy(),
-                                        nbr.copy())),
+                                        nbr.copy(), nbr_i.copy())),
     }
     if p.gas_on > 0.0:
         calls.update(_gas_calls(p, _gas_copy(sim), grains, n, np.zeros_like(grains.drag)))
-    calls["contacts"] = (evaluate_contacts, (grains, n, nbr_start, nbr, p, diag, sim._chunks, sim._pairs))
+    calls["contacts"] = (evaluate_contacts, (grains, n, nbr_start, nbr, nbr_i, p, diag, sim._chunks, sim._pairs))
     return calls
 
 

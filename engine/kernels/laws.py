@@ -54,21 +54,16 @@ def optional_terms(p):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def tangential(vcx, vcy, vcz, nx, ny, nz, fn, friction, gt, branchless=False):
-    """Tangential force (on the first body) from the contact-point velocity vc = v1 - v2, and gt
-    if the contact is in its viscous (sticking) branch, else 0.
+def slip_force(vtx, vty, vtz, fc, gt, branchless=False):
+    """Tangential force -min(fc, gt |v_t|) v_t/|v_t| against the slip v_t (tangential to the
+    contact), with fc = mu F_n, and gt if the contact is in its viscous (sticking) branch, else 0.
 
-    The branch is chosen on squares, gt^2 |v_t|^2 < (mu F_n)^2 (both sides non-negative), so that
-    a viscous contact, -gt v_t, takes no square root and no division; a slipping one is
-    -mu F_n v_t/|v_t|. `branchless` (a compile-time constant of the caller): the same values by
+    The branch is chosen on squares, gt^2 |v_t|^2 < fc^2 (both sides non-negative), so that a
+    viscous contact, -gt v_t, takes no square root and no division; a slipping one is
+    -fc v_t/|v_t|. `branchless` (a compile-time constant of the caller): the same values by
     selects instead of a branch, so that a loop over contacts vectorises; the root is then taken of
     1 where the contact is viscous and its result unused; a nan slip stays a nan force."""
-    vcn = vcx * nx + vcy * ny + vcz * nz
-    vtx = vcx - vcn * nx
-    vty = vcy - vcn * ny
-    vtz = vcz - vcn * nz
     vt2 = vtx * vtx + vty * vty + vtz * vtz
-    fc = friction * fn
     viscous = gt * gt * vt2 < fc * fc or vt2 == 0.0  # no slip counts as viscous: force 0, gt kept
     if branchless:
         s = -fc / math.sqrt(1.0 if viscous else vt2)
@@ -84,7 +79,7 @@ def tangential(vcx, vcy, vcz, nx, ny, nz, fn, friction, gt, branchless=False):
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
 def rolling_torque(fn, wx, wy, wz, r, mu_r, cap, branchless=False):
     """Rolling-resistance torque on the first body against the relative spin w, N m (`branchless`:
-    see tangential)."""
+    see slip_force)."""
     w = math.sqrt(wx * wx + wy * wy + wz * wz)
     if branchless:
         spinning = not (w <= 0.0)
@@ -106,33 +101,78 @@ def normal_force(delta, vn, c):
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
-def surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional, branchless=False):
-    """Force and torques of a contact with normal force fn > 0 on the first body, along the unit
-    normal n (first -> second); v the relative velocity v1 - v2, w the spin sum w1 + w2 of the
-    contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
+def pair_normal(dx, dy, dz, d2, vx, vy, vz, c):
+    """Normal force of two grains at centre offset D = x2 - x1 (|D|^2 = d2), relative velocity
+    v = v1 - v2; c = pair_constants.
+
+    Returns (F_n, 1/|D|, 1/|D|^2, v.D, overlap 2r - |D|). The square root and 1/d2 do not wait
+    for each other (1/|D| = |D|/d2), and the unit normal is never formed (surface_forces),
+    which keeps a contact's chain of dependent operations short."""
+    dist = math.sqrt(d2)
+    a = 1.0 / d2
+    inv = dist * a
+    vd = vx * dx + vy * dy + vz * dz
+    delta = 2.0 * c.radius - dist
+    return normal_force(delta, vd * inv, c), inv, a, vd, delta
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def surface_forces(fn, inv, a, vd, dx, dy, dz, vx, vy, vz, wx, wy, wz, rwx, rwy, rwz, c, optional,
+                   branchless=False):
+    """Force and torques of a contact with normal force fn > 0 on the first body, along the normal
+    n = inv D of the offset D (first -> second; inv = 1/|D|, a = 1/|D|^2, vd = v.D: pair_normal; a
+    wall passes its unit normal, inv = a = 1). v is the relative velocity v1 - v2, w the spin sum
+    w1 + w2 of the contact-point velocity (w1 at a wall), rw the relative spin w1 - w2 (w1 at a wall).
+    The contact point's velocity is v + r w x n; its rotational part is normal to n, so the slip
+    is v - (v.D) a D + r inv w x D.
 
     Returns (F, T1, T2, g): the force and torque on the first body, the torque on the second (the
     first's tangential torque minus its rolling torque; the second's force is -F), and gamma_t if
     the tangential force is in its viscous branch (else 0). `optional` adds the optional terms
-    (optional_terms); it is a compile-time constant of the calling loop (contacts.py compiles one
-    loop with them and one without), so that the loop without them keeps its arithmetic and speed;
-    `branchless` likewise (tangential).
+    (optional_terms); it is a compile-time constant of the calling loop (contacts.py and passes.py
+    compile one loop with them and one without), so that the loop without them keeps its arithmetic
+    and speed; `branchless` likewise (slip_force).
     """
     r = c.radius
-    ftx, fty, ftz, g = tangential(vx + r * (wy * nz - wz * ny), vy + r * (wz * nx - wx * nz),
-                                  vz + r * (wx * ny - wy * nx), nx, ny, nz, fn, c.friction, c.tangential_damping,
-                                  branchless)
-    fx = -fn * nx + ftx
-    fy = -fn * ny + fty
-    fz = -fn * nz + ftz
+    rinv = r * inv
+    vda = vd * a
+    ftx, fty, ftz, g = slip_force(vx - vda * dx + rinv * (wy * dz - wz * dy),
+                                  vy - vda * dy + rinv * (wz * dx - wx * dz),
+                                  vz - vda * dz + rinv * (wx * dy - wy * dx),
+                                  c.friction * fn, c.tangential_damping, branchless)
+    sn = fn * inv
+    fx = ftx - sn * dx
+    fy = fty - sn * dy
+    fz = ftz - sn * dz
     # both bodies get the same torque r n x F_t
-    tx = r * (ny * ftz - nz * fty)
-    ty = r * (nz * ftx - nx * ftz)
-    tz = r * (nx * fty - ny * ftx)
+    tx = rinv * (dy * ftz - dz * fty)
+    ty = rinv * (dz * ftx - dx * ftz)
+    tz = rinv * (dx * fty - dy * ftx)
     if optional:  # each term is zero when its key is 0
         mx, my, mz = rolling_torque(fn, rwx, rwy, rwz, r, c.rolling_resistance, c.rolling_cap, branchless)
         return fx, fy, fz, tx + mx, ty + my, tz + mz, tx - mx, ty - my, tz - mz, g
     return fx, fy, fz, tx, ty, tz, tx, ty, tz, g
+
+
+@nb.njit(cache=True, fastmath=FASTMATH, inline="always")
+def cylinder_contact(y, z, vx, vy, vz, wx, wy, wz, inner, c, optional, branchless=False):
+    """Contact of a grain centred at (x, y, z) (velocity v, spin w) with the tube's cylinder wall, whose
+    surface the grain's centre meets at rho = inner (= R - r); c = wall_constants.
+
+    The same law as wall_contact with the outward normal n = (0, y, z)/rho, taken as a pair with a
+    resting partner at offset D = (0, y, z) (surface_forces): one square root and 1/rho^2 that
+    do not wait for each other. Returns (F_n, F, T, g, overlap rho - inner): the normal force
+    (pulling where <= 0: the caller keeps no force there), force, torque, gamma_t if viscous."""
+    rho2 = y * y + z * z
+    rho = math.sqrt(rho2)
+    a = 1.0 / rho2
+    inv = rho * a
+    vd = vy * y + vz * z
+    delta = rho - inner
+    fn = normal_force(delta, vd * inv, c)
+    fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, inv, a, vd, 0.0, y, z, vx, vy, vz, wx, wy, wz,
+                                                        wx, wy, wz, c, optional, branchless)
+    return fn, fx, fy, fz, tx, ty, tz, g, delta
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")
@@ -142,19 +182,20 @@ def wall_contact(delta, nx, ny, nz, vx, vy, vz, wx, wy, wz, c, optional, branchl
 
     Returns (F_n, F, T, g): the normal force magnitude (0 when separating, then all zero), force
     and torque on the grain, and gamma_t if the tangential force is in its viscous branch (else 0).
-    Inlined with constant normals, the zero components fold away. `branchless`: see tangential.
+    Inlined with constant normals, the zero components fold away. `branchless`: see slip_force.
     """
-    fn = normal_force(delta, vx * nx + vy * ny + vz * nz, c)
+    vn = vx * nx + vy * ny + vz * nz
+    fn = normal_force(delta, vn, c)
     if branchless:
-        fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
-                                                            c, optional, True)
+        fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, 1.0, 1.0, vn, nx, ny, nz, vx, vy, vz, wx, wy, wz,
+                                                            wx, wy, wz, c, optional, True)
         if not (fn <= 0.0):  # selects: a nan fn keeps its values
             return fn, fx, fy, fz, tx, ty, tz, g
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if fn <= 0.0:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, nx, ny, nz, vx, vy, vz, wx, wy, wz, wx, wy, wz,
-                                                        c, optional)
+    fx, fy, fz, tx, ty, tz, _, _, _, g = surface_forces(fn, 1.0, 1.0, vn, nx, ny, nz, vx, vy, vz, wx, wy, wz,
+                                                        wx, wy, wz, c, optional)
     return fn, fx, fy, fz, tx, ty, tz, g
 
 

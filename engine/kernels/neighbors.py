@@ -101,8 +101,9 @@ def _half_stencil_runs(cx, cy, cz, shape, cell_start, run_lo, run_hi):
 
 
 @nb.njit(cache=True)
-def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
-    """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains.
+def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr, nbr_i):
+    """Half neighbour list (j > i, centres closer than d + skin) of cell-sorted grains: grain i's
+    partners are nbr[nbr_start[i]:nbr_start[i + 1]], and nbr_i[k] is the grain whose entry k is.
 
     Each grain's partners are listed in ascending index (the order the contact sums take). Returns
     the number of pairs, or -1 if nbr may be too small: room is checked for every candidate of a
@@ -143,6 +144,7 @@ def build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr):
                             dz = pos[j, 2] - zi
                             keep = dx * dx + dy * dy + dz * dz < cut2 and not (feed_i and in_feed[j])
                             nbr[k] = j
+                            nbr_i[k] = i
                             k += keep
     nbr_start[n] = k
     return k

@@ -11,8 +11,9 @@ Grains = namedtuple("Grains",
                     "pos vel omg force drag torque viscous_damping wall_normal gid in_feed pos_ref")
 
 # Cell grid and half neighbour list: grid shape (ncx, ncy, ncz), cell starts, each grain's cell,
-# sort order and sort work arrays, list starts per grain and the list (p.cell_*, p.skin).
-Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nbr_start nbr")
+# sort order and sort work arrays, list starts per grain, the list (partners) and each entry's grain
+# (p.cell_*, p.skin).
+Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nbr_start nbr nbr_i")
 
 # Thread work arrays of contacts.evaluate_contacts: spill rows of forces, torques and viscous damping
 # sums per chunk (zero between calls), chunk bounds (nchunks + 1), per-chunk diagnostics, touching
@@ -20,10 +21,7 @@ Neighbors = namedtuple("Neighbors", "shape cell_start cell_of order tmp3 tmpi nb
 Chunks = namedtuple("Chunks",
                     "spill_force spill_torque spill_viscous_damping bounds chunk_diag contact_count")
 
-# Work arrays of the one-thread contact passes (contacts.contact_forces; empty arrays: the single
-# loop runs), for one block of grains: per touching pair, compacted from the half list in list
-# order, its partner j (pair_j) and one row of `rows` per quantity (contacts.PAIR_ROWS: inputs
-# gathered contiguously, outputs of the pair law); each grain's first touching pair (start); per
-# grain one row of `walls` per input and result of its cylinder and inlet contact
-# (contacts.WALL_ROWS). Capacity: a block's list entries and grains (contacts.pair_buffers).
-Pairs = namedtuple("Pairs", "pair_j start rows walls")
+# Work arrays of the one-thread contact passes (passes.contact_passes), for one block of passes.BLOCK
+# list entries: the touching pairs' grains (pair_i, pair_j), one row of `rows` per quantity of a pair
+# (passes.ROWS, BLOCK values each: inputs gathered contiguously, outputs of the pair law).
+Pairs = namedtuple("Pairs", "pair_i pair_j rows")

@@ -27,11 +27,11 @@ def rebuild(grains, n, p, nbrs, counters):
     On neighbour-list overflow sets counters[OVERFLOW] = 1 (the caller grows nbrs.nbr and retries).
     """
     pos, vel, omg, _, drag, _, _, _, gid, in_feed, pos_ref = grains
-    shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr = nbrs
+    shape, cell_start, cell_of, order, tmp3, tmpi, nbr_start, nbr, nbr_i = nbrs
     n = sort_and_compact(pos, vel, omg, drag, gid, in_feed, n, p, shape, cell_start, cell_of, order, tmp3, tmpi,
                          counters)
     pos_ref[:n] = pos[:n]
-    npairs = build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr)
+    npairs = build_neighbor_list(pos, in_feed, n, p, shape, cell_start, nbr_start, nbr, nbr_i)
     counters[indices.OVERFLOW] = 1 if npairs < 0 else 0
     counters[indices.REBUILDS] += 1
     return n
@@ -169,7 +169,7 @@ def _step_forces(grains, n, p, nbrs, counters, diag, gas, chunks, pairs):
 @nb.njit(cache=True)
 def _forces(grains, n, p, nbrs, counters, diag, chunks, pairs):
     """Forces at the new positions; ends a step except for its closing half kick."""
-    evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, p, diag, chunks, pairs)
+    evaluate_contacts(grains, n, nbrs.nbr_start, nbrs.nbr, nbrs.nbr_i, p, diag, chunks, pairs)
     # running maximum overlap (grain-grain, wall, feed) since the last Simulation.reset_max_overlap,
     # so that the run guard sees every step, not only a frame's last
     diag[indices.DIAG_RUNNING_MAX] = max(diag[indices.DIAG_RUNNING_MAX], diag[indices.DIAG_OVERLAP],

@@ -40,7 +40,8 @@ def main(stage: str) -> None:
         return
     sim._n[0] = rebuild(g, n, sim._p, sim._neighbors(), sim._counters)
     g, n = sim._grains(), int(sim._n[0])
-    contacts.evaluate_contacts(g, n, sim._nbr_start, sim._nbr, sim._p, sim._diag, sim._chunks, sim._pairs)
+    contacts.evaluate_contacts(g, n, sim._nbr_start, sim._nbr, sim._nbr_i, sim._p, sim._diag, sim._chunks,
+                                sim._pairs)
     print(" ".join(float(v).hex() for v in np.concatenate([g.force[:n].ravel(), g.torque[:n].ravel(),
                                                           sim._diag[:2]])))
 

@@ -137,7 +137,8 @@ def test_rolling_resistance_between_grains_acts_against_their_relative_spin():
     def torques(p, rolling, fn):
         c = laws.pair_constants(p)
         # normal +x, no slip at the contact point; relative spin w1 - w2 = (0, 0, 2) rad/s
-        return laws.surface_forces(fn, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, c, rolling)
+        return laws.surface_forces(fn, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, c,
+                                   rolling)
 
     p = Simulation(grain_case("particles.rolling_resistance=0.1"))._p
     r = p.radius
@@ -245,6 +246,9 @@ def test_neighbor_list_matches_brute_force():
     assert got == expect
     # the contact sums run over a grain's partners in list order: a half list in ascending index
     assert all(partners == sorted(partners) and all(j > i for j in partners) for i, partners in enumerate(lists))
+    # each entry's grain, as the contact passes read the list (flat, without the starts)
+    start, listed = sim._nbr_start, int(sim._n[0])
+    np.testing.assert_array_equal(sim._nbr_i[:start[listed]], np.repeat(np.arange(listed), np.diff(start[:listed + 1])))
 
 
 def test_neighbor_list_grows_from_too_small_a_buffer():
@@ -256,7 +260,7 @@ def test_neighbor_list_grows_from_too_small_a_buffer():
     for size in (0, 8):
         tight = Simulation(grain_case("physics.gravity=0"))
         tight.add_particles(pos)
-        tight._nbr = np.zeros(size, dtype=np.int64)
+        tight._nbr = np.zeros(size, dtype=np.uint32)
         tight._prepare()
         assert len(tight._nbr) > size
         assert neighbor_lists(tight) == neighbor_lists(roomy)

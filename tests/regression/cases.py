@@ -240,7 +240,7 @@ def _number(value):
 #              (fastmath) in the gas solver only: gas off (packed_bed) the two are bit-identical to
 #              1 s; with gas the trajectories part when the first fed grains feel the drag.
 #   physics:   a 1 % change of one force-law line each: k_n in laws.normal_force
-#              (1.01 * c[1] * delta), the Coulomb cap in laws.tangential (fc = 1.01 * mu * fn), the
+#              (1.01 * c[1] * delta), the Coulomb cap fc of laws.slip_force (1.01 * mu * fn), the
 #              drag in gas.drag_forces (s = -1.01 * vp / ...), run with kernels compiled from the
 #              changed source.
 EXACT = (0.0, 0.0)

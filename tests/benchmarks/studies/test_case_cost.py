@@ -64,6 +64,9 @@ def test_a_variant_can_set_the_thread_count(case_cost, state, tmp_path):
 def test_a_variant_can_run_the_contact_passes(case_cost, state, tmp_path):
     case = tmp_path / "small.yaml"
     case.write_text(Case.from_yaml(ROOT / "config/cases/vertical.yaml", SMALL).to_yaml())
-    sims = [case_cost.prepare(str(case), str(state), v) for v in ("", "passes=1 numerics.neighbor_skin=0.6")]
-    assert [s.contact_passes for s in sims] == [False, True]
+    variants = ("", "passes=0 numerics.neighbor_skin=0.6", "passes=1")
+    sims = [case_cost.prepare(str(case), str(state), v) for v in variants]
+    # the passes are the default; passes=0 selects the single loop (empty work arrays), passes=1 keeps them
+    assert [s.contact_passes for s in sims] == [True, False, True]
+    assert [s._pairs.rows.shape[0] > 0 for s in sims] == [True, False, True]
     assert sims[1].case["numerics.neighbor_skin"] == 0.6

@@ -1,5 +1,5 @@
 """benchmarks/studies/neighbor_build.py: the engine's list is the grain-by-grain form's, entry for
-entry and in the same order (which the contact sums follow)."""
+entry (each with its grain) and in the same order (which the contact sums follow)."""
 
 import numpy as np
 import pytest
@@ -22,8 +22,10 @@ def test_the_engine_builds_the_grain_by_grain_list(study):
     assert (sim._in_feed[:n] == 1).sum() > 1  # pairs of two feed grains are left out of both
     engine, before = study.lists_of(build_neighbor_list, sim), study.lists_of(study.grain_by_grain, sim)
     assert engine[1].size > n
+    assert len(engine) == len(before) == 3  # nbr_start, nbr, nbr_i
     for a, b in zip(engine, before):
         np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(engine[2], np.repeat(np.arange(n), np.diff(engine[0])))  # entry k's grain
 
 
 def test_timing_and_step_share_report_positive_figures(study):

@@ -19,7 +19,8 @@ def test_the_parts_are_timed_on_copies_with_the_grains_held(study):
     sim = small_conveying_simulation()
     calls = study.part_calls(sim)  # rebuilds the simulation's list first
     assert list(calls) == ["kick_drift", "sort", "build", *study.GAS_PARTS, "contacts"]
-    before = [a.copy() for a in sim._grains()] + [sim._nbr_start.copy(), sim._nbr.copy(), sim.gas.pressure.copy()]
+    before = [a.copy() for a in sim._grains()] + [sim._nbr_start.copy(), sim._nbr.copy(), sim._nbr_i.copy(),
+                                                   sim.gas.pressure.copy()]
     held = calls["kick_drift"][1][0]
     positions, velocities = held.pos.copy(), held.vel.copy()
     for kernel, args in calls.values():  # called as the study calls them, twice
@@ -27,7 +28,7 @@ def test_the_parts_are_timed_on_copies_with_the_grains_held(study):
         kernel(*args)
     study.loop_step(sim, 0, 2)  # the step moving and held, on copies as well
     study.loop_step(sim, 5, 2)
-    after = [*sim._grains(), sim._nbr_start, sim._nbr, sim.gas.pressure]
+    after = [*sim._grains(), sim._nbr_start, sim._nbr, sim._nbr_i, sim.gas.pressure]
     for a, b in zip(before, after):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(held.pos, positions)  # the kick and drift by 0 move nothing
