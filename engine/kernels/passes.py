@@ -24,7 +24,7 @@ from . import laws
 from .laws import FASTMATH
 from .state import Pairs
 
-BLOCK = 128  # list entries (and grains) per block: 23 rows of 128 doubles, 23 KiB, stay in L1
+BLOCK = 128  # list entries per block: its 23 work rows of 128 doubles, 23 KiB, stay in the L1 cache
 
 # Offsets of the rows of Pairs.rows (BLOCK values each) per touching pair: inputs offset D = x_j - x_i
 # and |D|^2, relative velocity v_i - v_j, spin sum w_i + w_j, relative spin w_i - w_j (optional terms);
