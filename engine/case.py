@@ -227,6 +227,10 @@ KEYS: dict[str, Key] = {k.name: k for k in [
     Key("run.checkpoint_interval", 120.0, "s (wall)",
         "Wall-clock seconds between checkpoints of a running case (0: none periodic; Ctrl-C and "
         "SIGTERM still write one).", low=0.0, high=1e6),
+    Key("run.progress_interval", 60.0, "s (wall)",
+        "Wall-clock seconds between the progress lines of a run whose output is not a terminal (a "
+        "log file, a workflow job; 0: one per output frame). A terminal shows a progress bar instead.",
+        low=0.0, high=1e6),
     Key("run.warm_start_any", False, "",
         "Accept a warm start (--initial-state) from a case file of another tube length or "
         "inclination: grains beyond this tube's length are dropped, gravity turns, and the run logs "

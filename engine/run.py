@@ -83,7 +83,7 @@ def extends_only(key: str) -> bool:
 
 
 # keys that change neither a run's trajectory nor when it stops: a finished file is the same result
-NO_EFFECT = ("run.checkpoint_interval", "run.warm_start_any")
+NO_EFFECT = ("run.checkpoint_interval", "run.progress_interval", "run.warm_start_any")
 
 
 def case_digest(case: Case) -> str:
@@ -202,7 +202,8 @@ def _balanced(outflow: MeanError, inflow: MeanError, duration: float, grain: flo
 
 class Progress:
     """Progress of a run: a tqdm bar on a terminal; otherwise (quiet, or output to a log file) an
-    INFO line every `log_interval` seconds of wall time, so that a workflow job's log shows it."""
+    INFO line every `log_interval` seconds of wall time (run.progress_interval; 0: every frame), so
+    that a workflow job's log shows it."""
 
     def __init__(self, total: float, quiet: bool, initial: float = 0.0, log_interval: float = 60.0):
         self.bar = None
@@ -508,7 +509,8 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
     log.info("case %s: dt = %.3g s, %d gas nodes, feed %.3g kg/h, until %s", out.name, sim.dt,
              case["gas.nodes_x"] * case["gas.nodes_y"] * case["gas.nodes_z"] if case["gas.enabled"] else 0,
              case["feed.mass_flow_kg_h"], "steady" if case["run.until_steady"] else f"{case['run.duration']} s")
-    progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval)
+    progress = Progress(frames * interval, quiet, initial=(len(recorder.times) - 1) * interval,
+                        log_interval=case["run.progress_interval"])
     last_save = started = time.monotonic()
     cpu_started = time.process_time()
 
@@ -530,8 +532,8 @@ def _run_case(case: Case, out: Path, quiet: bool, initial_state: str | Path | No
                 raise wedged
             previous_overlap = sim.overlap
             sim.reset_max_overlap()  # the frame's largest overlap is recorded and checked
+            signals.armed = True  # before the progress line: a signal sent on seeing it saves a checkpoint
             progress.update(sim, interval)
-            signals.armed = True
             if case["run.until_steady"]:
                 window = steady_window(recorder, case)
                 if window:
