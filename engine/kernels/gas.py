@@ -19,11 +19,11 @@ from collections import namedtuple
 
 import numba as nb
 
+from .laws import FASTMATH
+
 # The arrays of one gas field, in the order the kernels take them (engine.gas.GasField.arrays)
 GasArrays = namedtuple("GasArrays", "pressure dep phi kappa u src nodal wmat wvec area ay az g")
 
-# fastmath without nnan/ninf so that isfinite guards keep working.
-FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @nb.njit(cache=True, fastmath=FASTMATH, inline="always")

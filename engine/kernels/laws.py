@@ -20,8 +20,10 @@ from collections import namedtuple
 
 import numba as nb
 
-# fastmath without nnan/ninf so that the blow-up guards (isfinite) keep working.
-FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+# The kernels' fastmath flags (engine/kernels/*). Without nnan/ninf, so that the blow-up guards
+# (isfinite) keep working; without reassoc, so that the compiler sums in the order written and a
+# result does not depend on the vector width it picks for the machine (decision 0043).
+FASTMATH = {"nsz", "arcp", "contract", "afn"}
 
 
 # The constants of one kind of contact (grain-grain or grain-wall): grain radius r (m), normal

@@ -214,10 +214,16 @@ def kernel_cache_dir() -> Path:
     return Path(tempfile.gettempdir()) / f"plugsim-regression-numba-{digest.hexdigest()[:16]}"
 
 
-def run_in_child(names) -> dict:
-    """{case: quantities} of `names`, computed by a child process with kernel_cache_dir()."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(kernel_cache_dir()),
+def run_in_child(names, cpu=None) -> dict:
+    """{case: quantities} of `names`, computed by a child process with kernel_cache_dir(); `cpu`:
+    (name, LLVM feature string) to compile the kernels for instead of this machine's own."""
+    cache = str(kernel_cache_dir())
+    if cpu is not None:  # a cache of its own: no two compiles into one folder at once
+        cache += "-" + hashlib.sha256("\0".join(cpu).encode()).hexdigest()[:8]
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache,
                PYTHONPATH=os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    if cpu is not None:
+        env.update(NUMBA_CPU_NAME=cpu[0], NUMBA_CPU_FEATURES=cpu[1])
     with tempfile.TemporaryDirectory(prefix="plugsim-regression-") as tmp:
         out = Path(tmp) / "values.json"
         res = subprocess.run([sys.executable, "-m", "tests.regression.cases", str(out), *names], cwd=ROOT,
@@ -225,6 +231,18 @@ def run_in_child(names) -> dict:
         if res.returncode != 0:
             raise RuntimeError(f"the regression cases failed in the child process:\n{res.stderr[-4000:]}")
         return json.loads(out.read_text())
+
+
+def host_cpu(wide_vectors: bool) -> tuple[str, str]:
+    """(name, LLVM feature string) of this machine's CPU with the compiler told to prefer its
+    widest vectors (`wide_vectors`) or half as wide ones: 512 against 256 bits where the CPU has
+    AVX-512, 256 against 128 bits otherwise. Both run here; LLVM picks its loops' vector width (and
+    with it the order of any sum it may reassociate) from this preference."""
+    import llvmlite.binding as ll
+
+    features = ll.get_host_cpu_features()
+    preference = "prefer-256-bit" if features.get("avx512f") else "prefer-128-bit"
+    return ll.get_host_cpu_name(), f"{features.flatten()},{'-' if wide_vectors else '+'}{preference}"
 
 
 def _number(value):
@@ -236,9 +254,10 @@ def _number(value):
 # (rel, abs): a value passes when |value - baseline| <= abs + rel |baseline|. Measured gaps (relative,
 # python -m tests.regression.gaps, at the durations above and 10 ms apart around them):
 #   rounding:  a run whose kernels were compiled in-process (fresh NUMBA_CACHE_DIR) against one that
-#              loaded them from the cache; the kernels differ in floating-point association
-#              (fastmath) in the gas solver only: gas off (packed_bed) the two are bit-identical to
-#              1 s; with gas the trajectories part when the first fed grains feel the drag.
+#              loaded them from the cache: bit-identical (0) at every frame to 0.15 s in every case
+#              (the kernels' fastmath has no `reassoc`, so no sum is reordered by the compiler);
+#              also the same bits with the kernels compiled for other vector widths
+#              (test_the_cases_do_not_depend_on_the_vector_width_the_kernels_are_compiled_for).
 #   physics:   a 1 % change of one force-law line each: k_n in laws.normal_force
 #              (1.01 * c[1] * delta), the Coulomb cap fc of laws.slip_force (1.01 * mu * fn), the
 #              drag in gas.drag_forces (s = -1.01 * vp / ...), run with kernels compiled from the
@@ -246,8 +265,7 @@ def _number(value):
 EXACT = (0.0, 0.0)
 MASS = (1e-12, 0.0)  # grain counts times the grain mass: exact up to the summation's rounding
 TOLERANCES = {
-    # packed_bed at 0.15 s. rounding: bit-identical (0) at every frame to 1 s. physics at 0.15 s: k_n
-    # z_mean 1.4e-2, x_mean 9.8e-3, z_std 1.3e-2, x_std 3.8e-3, wall_force 2.8e-2, kinetic_energy
+    # packed_bed at 0.15 s. rounding: 0. physics at 0.15 s: k_n z_mean 1.4e-2, x_mean 9.8e-3, z_std 1.3e-2, x_std 3.8e-3, wall_force 2.8e-2, kinetic_energy
     # 0.11; friction z_mean 5.1e-3, x_mean 2.8e-3, z_std 1.7e-2, x_std 4.8e-3, wall_force 0.26,
     # kinetic_energy 4.0e-3; drag 0 (gas off: the drag is the runs' to catch). A change of the
     # last bits of every viscous tangential force (its branch chosen on squares) moved x_mean by
@@ -259,23 +277,17 @@ TOLERANCES = {
     # frame), so they get 1e-3.
     "packed_bed": {"*": (1e-6, 0.0), "n_particles": EXACT, "wall_force": (1e-3, 0.0),
                    "max_overlap": (1e-3, 0.0), "kinetic_energy": (1e-3, 0.0)},
-    # horizontal at 0.08 s, the default split gas scheme. rounding: the runs part at 0.06 s (3e-16
-    # on the kinetic energy); at 0.08 s pressure_drop_mean 1.6e-11, velocity_mean 0, kinetic energy
-    # 1.8e-10 (mean) and 2.5e-10 (final), wall_stress_mean 1.2e-8; at 0.09 s 7.5e-6, 8.0e-5,
-    # 3.1e-4, 5.5e-4, 1.2e-5. physics at 0.08 s: pressure_drop_mean k_n 3.0e-4, friction 3.7e-5,
-    # drag 7.7e-4; velocity_mean 1.1e-3, 5.2e-4, 4.5e-3; kinetic_energy_mean 2.4e-3, 1.0e-2,
-    # 1.2e-2; kinetic_energy_final 4.3e-3, 1.0e-2, 1.4e-2; wall_stress_mean 0.33, 0.58, 0.26. So
-    # 1e-5: 3.7 times below the smallest physics gap (friction on the pressure drop; its velocity
-    # gap is 52 times the tolerance), 4e4 times above the rounding gap at 0.08 s, which passes it
-    # 10 ms later; the wall stress 1e-3 (260 times below its physics gaps). Grain books: the feed
-    # is kinematic, no grain has left yet.
+    # horizontal at 0.08 s, the default split gas scheme. rounding: 0. physics at 0.08 s:
+    # pressure_drop_mean k_n 3.0e-4, friction 3.7e-5, drag 7.7e-4; velocity_mean 1.1e-3, 5.2e-4,
+    # 4.5e-3; kinetic_energy_mean 2.4e-3, 1.0e-2, 1.2e-2; kinetic_energy_final 4.3e-3, 1.0e-2,
+    # 1.4e-2; wall_stress_mean 0.33, 0.58, 0.26. So 1e-5: 3.7 times below the smallest physics gap
+    # (friction on the pressure drop; its velocity gap is 52 times the tolerance); the wall stress
+    # 1e-3 (260 times below its physics gaps). Grain books: the feed is kinematic, no grain has
+    # left yet.
     "horizontal": {"*": (1e-5, 0.0), "n_particles": EXACT, "mass_in": MASS, "mass_out": MASS,
                    "wall_stress_mean": (1e-3, 0.0)},
-    # vertical at 0.08 s, the default split gas scheme. rounding: the runs part at 0.06 s (1.3e-16
-    # on the pressure drop); at 0.08 s pressure_drop_mean 4.0e-9, velocity_mean 9.1e-8, kinetic
-    # energy 1.7e-7 (mean) and 7.0e-7 (final); at 0.09 s 3.5e-5, 9.6e-5, 8.8e-5, 2.9e-4: 0.08 s is
-    # the last frame below the tolerance (14 times). physics at 0.08 s: pressure_drop_mean k_n
-    # 8.2e-5, friction 3.3e-4, drag 6.7e-4; velocity_mean 5.2e-3, 1.4e-2, 4.9e-3;
+    # vertical at 0.08 s, the default split gas scheme. rounding: 0. physics at 0.08 s:
+    # pressure_drop_mean k_n 8.2e-5, friction 3.3e-4, drag 6.7e-4; velocity_mean 5.2e-3, 1.4e-2, 4.9e-3;
     # kinetic_energy_mean 1.2e-2, 2.0e-2, 1.3e-2; kinetic_energy_final 2.3e-3, 5.9e-2, 0.12.
     # 1e-5 is 8 times below the smallest (k_n on the pressure drop; its velocity gap is 520 times
     # the tolerance). No grain touches the wall yet at 0.08 s: wall_stress_mean is 0 (abs 1e-9 Pa)
@@ -285,9 +297,8 @@ TOLERANCES = {
     # reduction. engine.*: the summary of the horizontal case file (0.08 s, no slug yet): its
     # pressure drop, dense and slug fractions and mean grain count are averages of the run's
     # frames, so the horizontal tolerance 1e-5 (float32 slice fields: a rounding-level change of
-    # the run either leaves them bit-identical or moves them by a float32 ulp, 6e-8). rounding
-    # (split gas scheme): engine.pressure_drop 4.1e-13 at 0.07 s, 2.0e-11 at 0.08 s, 8.6e-6 at
-    # 0.09 s; physics at 0.08 s: k_n 3.7e-4, friction 4.5e-5, drag 9.3e-4. The window
+    # the run either leaves them bit-identical or moves them by a float32 ulp, 6e-8). rounding: 0;
+    # physics at 0.08 s: k_n 3.7e-4, friction 4.5e-5, drag 9.3e-4. The window
     # start is a frame time (exact), counts and the regime exact. synthetic.*: detect,
     # case_summary and slug_statistics on a synthetic case file from numpy's seeded generator:
     # deterministic arithmetic, so 1e-9 (a numpy or pandas change of summation order moves it by
